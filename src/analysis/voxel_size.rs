@@ -1,0 +1,201 @@
+//! Voxel-size reconstruction from a marching-cubes mesh (Bade 2007, §3.2).
+//!
+//! Marching cubes on a binary volume puts every vertex at a grid-edge midpoint, so along each
+//! axis the offset between two adjacent vertices is 0, h/2 or h (h = spacing). The paper stops at
+//! the first two distinct non-zero offsets; that breaks on float noise and on edited meshes, so
+//! here all edge offsets are clustered with a tolerance scaled to the coordinates' float
+//! precision, and an axis is accepted only if two clusters in ratio 2 explain nearly all of them.
+
+use crate::mesh::{Mesh, Topology};
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// Share of non-zero edge offsets the h/2 and h clusters must explain for a grid to be accepted.
+const MIN_EXPLAINED: f64 = 0.99;
+/// Relative tolerance on the h : h/2 ratio of 2.
+const RATIO_TOLERANCE: f64 = 0.01;
+
+/// What the edge offsets along one axis say about the grid spacing.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum AxisSpacing {
+    /// Offsets are h/2 and h: the spacing is h (mm).
+    Spacing { mm: f64 },
+    /// Only one non-zero offset occurs, so it is h or h/2 and the spacing is ambiguous.
+    OneStep { mm: f64 },
+    /// No edge runs along this axis (a flat mesh).
+    NoSteps,
+    /// Offsets take many values: the mesh is not a marching-cubes surface on a grid aligned
+    /// with this axis (rotated, resampled, decimated or already smoothed).
+    Irregular {
+        n_clusters: usize,
+        share_explained: f64,
+    },
+}
+
+/// Per-axis result of the voxel-size reconstruction.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct VoxelSizeEstimate {
+    pub axes: [AxisSpacing; 3],
+}
+
+impl VoxelSizeEstimate {
+    /// Grid spacing (x, y, z) in mm when every axis was reconstructed unambiguously.
+    pub fn spacing(&self) -> Option<[f64; 3]> {
+        let mut out = [0.0; 3];
+        for (k, axis) in self.axes.iter().enumerate() {
+            match axis {
+                AxisSpacing::Spacing { mm } => out[k] = *mm,
+                _ => return None,
+            }
+        }
+        Some(out)
+    }
+
+    /// True when some axis shows offsets that no axis-aligned grid produces.
+    pub fn is_irregular(&self) -> bool {
+        self.axes
+            .iter()
+            .any(|a| matches!(a, AxisSpacing::Irregular { .. }))
+    }
+}
+
+/// Reconstructs the voxel size (mm per axis) of the grid a marching-cubes mesh came from.
+pub fn voxel_size(mesh: &Mesh, topology: &Topology) -> VoxelSizeEstimate {
+    let p = mesh.positions();
+    let edges = topology.edges();
+    let axes = std::array::from_fn(|k| {
+        let max_abs = p.iter().map(|q| q[k].abs()).fold(0.0f32, f32::max) as f64;
+        // Offsets below a few ulps of the largest coordinate are float noise around 0.
+        let zero_tol = 8.0 * f32::EPSILON as f64 * max_abs.max(1e-6);
+        let mut offsets: Vec<f64> = edges
+            .par_iter()
+            .map(|&[a, b]| (p[a as usize][k] as f64 - p[b as usize][k] as f64).abs())
+            .filter(|&d| d > zero_tol)
+            .collect();
+        offsets.par_sort_unstable_by(f64::total_cmp);
+        axis_spacing(&offsets, zero_tol)
+    });
+    VoxelSizeEstimate { axes }
+}
+
+/// Classifies one axis from its sorted non-zero edge offsets.
+fn axis_spacing(sorted: &[f64], zero_tol: f64) -> AxisSpacing {
+    if sorted.is_empty() {
+        return AxisSpacing::NoSteps;
+    }
+    // Clusters of offsets equal up to float noise: (representative, count).
+    let mut clusters: Vec<(f64, usize)> = Vec::new();
+    let mut start = 0;
+    for i in 1..=sorted.len() {
+        let tol = (4.0 * zero_tol).max(1e-4 * sorted[start]);
+        if i == sorted.len() || sorted[i] - sorted[start] > tol {
+            clusters.push((sorted[(start + i) / 2], i - start));
+            start = i;
+        }
+    }
+    clusters.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.total_cmp(&b.0)));
+    let total = sorted.len() as f64;
+    let top = clusters[0];
+    let second = clusters.get(1).copied().unwrap_or((0.0, 0));
+    let explained = (top.1 + second.1) as f64 / total;
+    if explained < MIN_EXPLAINED {
+        return AxisSpacing::Irregular {
+            n_clusters: clusters.len(),
+            share_explained: explained,
+        };
+    }
+    if second.1 == 0 || (second.1 as f64) < (1.0 - MIN_EXPLAINED) * total {
+        return AxisSpacing::OneStep { mm: top.0 };
+    }
+    let (small, large) = (top.0.min(second.0), top.0.max(second.0));
+    if (large / small - 2.0).abs() <= 2.0 * RATIO_TOLERANCE {
+        AxisSpacing::Spacing { mm: large }
+    } else {
+        AxisSpacing::Irregular {
+            n_clusters: clusters.len(),
+            share_explained: explained,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn clusters_half_and_full_steps_with_noise() {
+        let mut v: Vec<f64> = (0..300)
+            .map(|i| 1.5 + (i % 7) as f64 * 1e-6)
+            .chain((0..200).map(|i| 3.0 - (i % 5) as f64 * 1e-6))
+            .collect();
+        v.sort_by(f64::total_cmp);
+        match axis_spacing(&v, 1e-6) {
+            AxisSpacing::Spacing { mm } => assert!((mm - 3.0).abs() < 1e-5),
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn one_step_and_irregular() {
+        assert!(matches!(
+            axis_spacing(&[0.5; 10], 1e-7),
+            AxisSpacing::OneStep { .. }
+        ));
+        let spread: Vec<f64> = (1..100).map(|i| i as f64 * 0.01).collect();
+        assert!(matches!(
+            axis_spacing(&spread, 1e-7),
+            AxisSpacing::Irregular { .. }
+        ));
+        let wrong_ratio = [vec![1.0; 50], vec![3.0; 50]].concat();
+        assert!(matches!(
+            axis_spacing(&wrong_ratio, 1e-7),
+            AxisSpacing::Irregular { .. }
+        ));
+        assert_eq!(axis_spacing(&[], 1e-7), AxisSpacing::NoSteps);
+    }
+
+    /// A staircase strip whose vertices sit on grid-edge midpoints of a 0.45 x 0.7 x 3 mm grid
+    /// far from the origin (so float noise is real); each axis sees offsets h/2 and h.
+    fn midpoint_strip(rotate_deg: f32) -> Mesh {
+        let h = [0.45f32, 0.7, 3.0];
+        let origin = [-120.3f32, 87.1, 1013.0];
+        let (s, c) = rotate_deg.to_radians().sin_cos();
+        let mut positions = Vec::new();
+        let mut triangles = Vec::new();
+        let (mut a, mut z) = (0u32, 0u32);
+        for i in 0..40u32 {
+            // Half-step offsets along every axis alternate between 1 and 2 (h/2 and h).
+            let rows = [
+                [a as f32, 0.0, z as f32],
+                [a as f32 + 1.0, if i % 2 == 0 { 2.0 } else { 1.0 }, z as f32],
+            ];
+            for g in rows {
+                let p = [0.5 * g[0] * h[0], 0.5 * g[1] * h[1], 0.5 * g[2] * h[2]];
+                let (x, y) = (c * p[0] - s * p[1], s * p[0] + c * p[1]);
+                positions.push([origin[0] + x, origin[1] + y, origin[2] + p[2]]);
+            }
+            a += 1 + i % 2;
+            z += 1 + i % 2;
+            if i > 0 {
+                let (a, b, cc, d) = (2 * i - 2, 2 * i - 1, 2 * i, 2 * i + 1);
+                triangles.push([a, cc, b]);
+                triangles.push([b, cc, d]);
+            }
+        }
+        Mesh::new(positions, triangles).unwrap()
+    }
+
+    #[test]
+    fn reconstructs_grid_spacing_and_refuses_rotated_grids() {
+        let m = midpoint_strip(0.0);
+        let est = voxel_size(&m, &Topology::build(&m));
+        let got = est.spacing().unwrap_or_else(|| panic!("{est:?}"));
+        for (g, want) in got.iter().zip([0.45, 0.7, 3.0]) {
+            assert!((g - want).abs() < 1e-4, "{got:?}");
+        }
+        let r = midpoint_strip(30.0);
+        let est = voxel_size(&r, &Topology::build(&r));
+        assert!(est.spacing().is_none() && est.is_irregular(), "{est:?}");
+    }
+}

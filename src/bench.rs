@@ -1,0 +1,116 @@
+//! `destair bench`: measured throughput of destair's stages on generated meshes.
+//!
+//! Timings are the best of several runs (warm page cache), the usual way to report
+//! throughput that is not disturbed by other work on the machine.
+
+use crate::io::ply::write_ply;
+use crate::io::{read_mesh, MeshMeta, ReadMode, ReadOptions};
+use crate::mesh::{Mesh, Topology};
+use serde::Serialize;
+use std::path::Path;
+use std::time::Instant;
+
+/// A closed torus of `rings` x `segments` quads split into triangles (2 x rings x segments
+/// triangles), radii 60 and 20 mm. With `shuffle_seed` the vertex numbering is permuted,
+/// which removes the memory locality marching-cubes output has and shows the worst case.
+pub fn torus(rings: usize, segments: usize, shuffle_seed: Option<u64>) -> Mesh {
+    let n = rings * segments;
+    let mut order: Vec<u32> = (0..n as u32).collect();
+    if let Some(seed) = shuffle_seed {
+        fastrand::Rng::with_seed(seed).shuffle(&mut order);
+    }
+    let mut positions = vec![[0.0f32; 3]; n];
+    for i in 0..rings {
+        let u = i as f32 / rings as f32 * std::f32::consts::TAU;
+        for j in 0..segments {
+            let v = j as f32 / segments as f32 * std::f32::consts::TAU;
+            let r = 60.0 + 20.0 * v.cos();
+            positions[order[i * segments + j] as usize] =
+                [r * u.cos(), r * u.sin(), 20.0 * v.sin()];
+        }
+    }
+    let id = |i: usize, j: usize| order[(i % rings) * segments + (j % segments)];
+    let mut triangles = Vec::with_capacity(2 * n);
+    for i in 0..rings {
+        for j in 0..segments {
+            let (a, b, c, d) = (id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
+            triangles.push([a, b, c]);
+            triangles.push([a, c, d]);
+        }
+    }
+    Mesh::from_checked_parts(positions, triangles)
+}
+
+/// Seconds of the best run of `f` over `repeat` runs.
+pub fn best_of<T>(repeat: usize, mut f: impl FnMut() -> T) -> (f64, T) {
+    let mut best = f64::INFINITY;
+    let mut last = None;
+    for _ in 0..repeat.max(1) {
+        let t = Instant::now();
+        let out = f();
+        best = best.min(t.elapsed().as_secs_f64());
+        last = Some(out);
+    }
+    (best, last.expect("repeat.max(1) runs at least once"))
+}
+
+/// Results of `destair bench io`.
+#[derive(Debug, Serialize)]
+pub struct IoBench {
+    pub n_vertices: usize,
+    pub n_triangles: usize,
+    pub shuffled: bool,
+    pub file_bytes: u64,
+    pub threads: usize,
+    pub write_s: f64,
+    pub read_mmap_s: f64,
+    pub read_plain_s: f64,
+    pub topology_s: f64,
+    pub write_mb_per_s: f64,
+    pub read_mmap_mb_per_s: f64,
+}
+
+/// Generates a torus of about `triangles` triangles, writes it as binary PLY in `dir`, then
+/// times write, read+validate (mmap and plain read) and topology build.
+pub fn io(dir: &Path, triangles: usize, shuffle: bool, repeat: usize) -> anyhow::Result<IoBench> {
+    // Rings about 2.5 x segments keeps the quads near square on a 60/20 mm torus.
+    let segments = ((triangles as f64 / 5.0).sqrt().round() as usize).max(3);
+    let rings = (triangles / 2).div_ceil(segments).max(3);
+    let mesh = torus(rings, segments, shuffle.then_some(7));
+    let path = dir.join("bench-io.ply");
+    let meta = MeshMeta::default();
+    let (write_s, written) = best_of(repeat, || write_ply(&path, &mesh, &meta, &[]));
+    written?;
+    let file_bytes = std::fs::metadata(&path)?.len();
+    let read = |mode| {
+        let options = ReadOptions {
+            mode,
+            ..Default::default()
+        };
+        best_of(repeat, || read_mesh(&path, &options))
+    };
+    let (read_mmap_s, loaded) = read(ReadMode::Mmap);
+    let loaded = loaded?;
+    anyhow::ensure!(
+        loaded.mesh == mesh,
+        "bench: mesh read back differs from mesh written"
+    );
+    let (read_plain_s, _) = read(ReadMode::Read);
+    let (topology_s, topology) = best_of(repeat, || Topology::build(&mesh));
+    anyhow::ensure!(topology.is_closed_oriented_manifold() && topology.euler_characteristic() == 0);
+    std::fs::remove_file(&path)?;
+    let mb = file_bytes as f64 / 1e6;
+    Ok(IoBench {
+        n_vertices: mesh.n_vertices(),
+        n_triangles: mesh.n_triangles(),
+        shuffled: shuffle,
+        file_bytes,
+        threads: rayon::current_num_threads(),
+        write_s,
+        read_mmap_s,
+        read_plain_s,
+        topology_s,
+        write_mb_per_s: mb / write_s,
+        read_mmap_mb_per_s: mb / read_mmap_s,
+    })
+}

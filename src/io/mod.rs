@@ -1,0 +1,279 @@
+//! Mesh files in and out: PLY (binary either endianness, ASCII), STL (binary, ASCII), OBJ.
+//!
+//! Readers decode from a memory map (or a plain read, for network filesystems where a mapped
+//! file can vanish) into owned arrays, validate while decoding, and report every problem with
+//! the file and the place in it. Writers are atomic: temp file in the target folder, then rename.
+
+pub mod atomic;
+pub mod obj;
+pub mod ply;
+pub mod stl;
+mod text;
+
+pub use atomic::write_atomically;
+
+use crate::mesh::{Mesh, MeshError};
+use std::path::{Path, PathBuf};
+use thiserror::Error;
+
+/// How a file is brought into memory before decoding.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ReadMode {
+    /// Memory-map the file (fastest on local disks).
+    #[default]
+    Mmap,
+    /// Read the file into a buffer (safe on NFS/Lustre, where a mapped file that is replaced or
+    /// truncated by another process would crash the reader).
+    Read,
+}
+
+/// Options for [`read_mesh`].
+#[derive(Debug, Clone, Default)]
+pub struct ReadOptions {
+    /// How the file is brought into memory.
+    pub mode: ReadMode,
+    /// Keep the file's extra per-vertex scalar properties (PLY only), e.g. `weight` or `quality`.
+    pub keep_vertex_properties: bool,
+}
+
+/// The file dialect a mesh was decoded from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SourceFormat {
+    PlyBinaryLittleEndian,
+    PlyBinaryBigEndian,
+    PlyAscii,
+    StlBinary,
+    StlAscii,
+    Obj,
+}
+
+impl std::fmt::Display for SourceFormat {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            SourceFormat::PlyBinaryLittleEndian => "PLY binary little-endian",
+            SourceFormat::PlyBinaryBigEndian => "PLY binary big-endian",
+            SourceFormat::PlyAscii => "PLY ASCII",
+            SourceFormat::StlBinary => "STL binary",
+            SourceFormat::StlAscii => "STL ASCII",
+            SourceFormat::Obj => "OBJ",
+        })
+    }
+}
+
+/// Header text that travels with a mesh and is written back (e.g. 3D Slicer's `SPACE=LPS`).
+#[derive(Debug, Clone, Default, PartialEq, Eq, serde::Serialize)]
+pub struct MeshMeta {
+    /// PLY `comment` lines (without the keyword); STL/OBJ readers put a found `SPACE=` tag here.
+    pub comments: Vec<String>,
+    /// PLY `obj_info` lines (without the keyword).
+    pub obj_info: Vec<String>,
+}
+
+impl MeshMeta {
+    /// The coordinate-space tag (`LPS`, `RAS`) from a `SPACE=` comment, if any.
+    pub fn space(&self) -> Option<&str> {
+        self.comments.iter().find_map(|c| {
+            let rest = &c[c.find("SPACE=")? + "SPACE=".len()..];
+            let tag = rest.split_whitespace().next()?;
+            (!tag.is_empty()).then_some(tag)
+        })
+    }
+}
+
+/// One extra per-vertex scalar property kept from a PLY file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VertexProperty {
+    pub name: String,
+    pub values: Vec<f32>,
+}
+
+/// A decoded mesh with what the file said besides geometry.
+#[derive(Debug, Clone)]
+pub struct LoadedMesh {
+    pub mesh: Mesh,
+    pub meta: MeshMeta,
+    /// Extra per-vertex scalars (only with [`ReadOptions::keep_vertex_properties`]).
+    pub vertex_properties: Vec<VertexProperty>,
+    /// Things that were accepted but changed or ignored (polygons fanned, elements skipped).
+    pub warnings: Vec<String>,
+    pub format: SourceFormat,
+}
+
+/// A mesh file that could not be read, with its path.
+#[derive(Debug, Error)]
+#[error("{}: {kind}", path.display())]
+pub struct ReadError {
+    pub path: PathBuf,
+    pub kind: ReadErrorKind,
+}
+
+/// What is wrong with a mesh file, and where.
+#[derive(Debug, Error)]
+pub enum ReadErrorKind {
+    #[error("cannot read file: {0}")]
+    Io(#[from] std::io::Error),
+    #[error("file is empty")]
+    Empty,
+    #[error(
+        "unknown mesh format: expected a .ply, .stl or .obj file (file starts with {start:?})"
+    )]
+    UnknownFormat { start: String },
+    #[error("header line {line}: {message}")]
+    Header { line: usize, message: String },
+    #[error("header declares more data than the file holds: {message}")]
+    SizeMismatch { message: String },
+    #[error("{place}: file ends before the data does")]
+    Truncated { place: String },
+    #[error("{place}: {message}")]
+    Malformed { place: String, message: String },
+    #[error("{place}: vertex index {index} is out of range (the mesh has {n_vertices} vertices)")]
+    IndexOutOfRange {
+        place: String,
+        index: i64,
+        n_vertices: u64,
+    },
+    #[error("{place}: coordinate is not a finite number ({value})")]
+    NonFinite { place: String, value: f64 },
+    #[error("the mesh has no vertices")]
+    NoVertices,
+    #[error("{0}")]
+    Mesh(#[from] MeshError),
+}
+
+/// What a format decoder returns before the path is attached.
+pub(crate) type DecodeResult = Result<LoadedMesh, ReadErrorKind>;
+
+/// Reads a mesh file, choosing the decoder by content (PLY magic, STL layout) and extension.
+pub fn read_mesh(path: &Path, options: &ReadOptions) -> Result<LoadedMesh, ReadError> {
+    let err = |kind| ReadError {
+        path: path.to_path_buf(),
+        kind,
+    };
+    let bytes = FileBytes::open(path, options.mode).map_err(|e| err(e.into()))?;
+    decode_mesh(&bytes, extension(path).as_deref(), options).map_err(err)
+}
+
+/// Decodes mesh bytes; `extension` (lower case, no dot) breaks ties the content leaves open.
+pub fn decode_mesh(
+    bytes: &[u8],
+    extension: Option<&str>,
+    options: &ReadOptions,
+) -> Result<LoadedMesh, ReadErrorKind> {
+    if bytes.is_empty() {
+        return Err(ReadErrorKind::Empty);
+    }
+    let loaded = if bytes.starts_with(b"ply") || extension == Some("ply") {
+        ply::read::decode(bytes, options)?
+    } else if extension == Some("stl") || stl::looks_like_stl(bytes) {
+        stl::decode(bytes)?
+    } else if extension == Some("obj") {
+        obj::decode(bytes)?
+    } else {
+        let start = String::from_utf8_lossy(&bytes[..bytes.len().min(16)]).into_owned();
+        return Err(ReadErrorKind::UnknownFormat { start });
+    };
+    if loaded.mesh.n_vertices() == 0 {
+        return Err(ReadErrorKind::NoVertices);
+    }
+    Ok(loaded)
+}
+
+fn extension(path: &Path) -> Option<String> {
+    Some(path.extension()?.to_str()?.to_ascii_lowercase())
+}
+
+/// File contents, mapped or read; dropped as soon as decoding is done.
+enum FileBytes {
+    Mapped(memmap2::Mmap),
+    Owned(Vec<u8>),
+}
+
+impl FileBytes {
+    fn open(path: &Path, mode: ReadMode) -> std::io::Result<FileBytes> {
+        let file = std::fs::File::open(path)?;
+        let len = file.metadata()?.len();
+        // Mapping an empty file fails on some systems; an empty buffer gives the clearer error.
+        if mode == ReadMode::Read || len == 0 {
+            let mut buf = Vec::new();
+            std::io::Read::read_to_end(&mut &file, &mut buf)?;
+            return Ok(FileBytes::Owned(buf));
+        }
+        // SAFETY: the map is read-only and dropped before read_mesh returns. Another process
+        // truncating the file meanwhile would fault; ReadMode::Read exists for filesystems
+        // where that can happen.
+        let map = unsafe { memmap2::MmapOptions::new().populate().map(&file)? };
+        Ok(FileBytes::Mapped(map))
+    }
+}
+
+impl std::ops::Deref for FileBytes {
+    type Target = [u8];
+    fn deref(&self) -> &[u8] {
+        match self {
+            FileBytes::Mapped(m) => m,
+            FileBytes::Owned(v) => v,
+        }
+    }
+}
+
+/// Mesh output formats.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OutputFormat {
+    Ply,
+    Stl,
+}
+
+/// A mesh file that could not be written.
+#[derive(Debug, Error)]
+pub enum WriteError {
+    #[error("{}: cannot write: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("vertex property {name:?}: {message}")]
+    InvalidProperty { name: String, message: String },
+}
+
+/// Counts of polygons fanned and faces dropped, turned into load warnings at the end.
+#[derive(Debug, Default)]
+pub(crate) struct FaceStats {
+    pub fanned_polygons: u64,
+    pub fan_triangles: u64,
+    pub dropped_faces: u64,
+}
+
+impl FaceStats {
+    pub(crate) fn warnings(&self, out: &mut Vec<String>) {
+        if self.fanned_polygons > 0 {
+            out.push(format!(
+                "{} polygons with more than 3 vertices were fan-triangulated into {} triangles",
+                self.fanned_polygons, self.fan_triangles
+            ));
+        }
+        if self.dropped_faces > 0 {
+            out.push(format!(
+                "{} faces with fewer than 3 vertices were dropped",
+                self.dropped_faces
+            ));
+        }
+    }
+
+    /// Appends a polygon (already index-checked) as a triangle fan around its first vertex.
+    pub(crate) fn push_polygon(&mut self, polygon: &[u32], triangles: &mut Vec<[u32; 3]>) {
+        match polygon.len() {
+            0..=2 => self.dropped_faces += 1,
+            3 => triangles.push([polygon[0], polygon[1], polygon[2]]),
+            n => {
+                self.fanned_polygons += 1;
+                self.fan_triangles += (n - 2) as u64;
+                for k in 1..n - 1 {
+                    triangles.push([polygon[0], polygon[k], polygon[k + 1]]);
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,297 @@
+//! STL, binary and ASCII. STL stores each triangle's corners separately; identical corners are
+//! welded into shared vertices (numbered in order of first appearance), so the result is an
+//! indexed mesh with real topology. A `SPACE=LPS`/`RAS` tag in the binary header or the ASCII
+//! solid name becomes a `SPACE=` comment, and the writer puts it back.
+
+use crate::io::text::{parse_f64, show, TextCursor};
+use crate::io::{
+    write_atomically, DecodeResult, FaceStats, LoadedMesh, MeshMeta, ReadErrorKind, SourceFormat,
+    WriteError,
+};
+use crate::mesh::geometry::{normalize, triangle_area_vector};
+use crate::mesh::{check_size, Mesh};
+use rayon::prelude::*;
+use std::collections::HashMap;
+use std::path::Path;
+
+const HEADER: usize = 80;
+const RECORD: usize = 50;
+
+/// True when the bytes are laid out as a binary STL or start like an ASCII one.
+pub(crate) fn looks_like_stl(bytes: &[u8]) -> bool {
+    binary_size_matches(bytes) || looks_ascii(bytes)
+}
+
+fn binary_size_matches(bytes: &[u8]) -> bool {
+    bytes.len() >= HEADER + 4 && {
+        let n = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as u64;
+        (HEADER + 4) as u64 + RECORD as u64 * n == bytes.len() as u64
+    }
+}
+
+fn looks_ascii(bytes: &[u8]) -> bool {
+    let head = &bytes[..bytes.len().min(1024)];
+    let trimmed = head.trim_ascii_start();
+    trimmed.starts_with(b"solid")
+        && head.iter().all(|&b| b.is_ascii())
+        && (contains(head, b"facet") || contains(head, b"endsolid"))
+}
+
+fn contains(haystack: &[u8], needle: &[u8]) -> bool {
+    haystack.windows(needle.len()).any(|w| w == needle)
+}
+
+/// Decodes binary or ASCII STL.
+pub(crate) fn decode(bytes: &[u8]) -> DecodeResult {
+    // Binary files whose header happens to start with "solid" are common, so the size check
+    // wins unless the start really reads as ASCII STL.
+    if looks_ascii(bytes) {
+        decode_ascii(bytes)
+    } else if binary_size_matches(bytes) {
+        decode_binary(bytes)
+    } else if bytes.len() >= HEADER + 4 {
+        let n = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as u64;
+        Err(ReadErrorKind::SizeMismatch {
+            message: format!(
+                "binary STL declares {n} triangles, which need {} bytes, but the file has {} bytes",
+                (HEADER + 4) as u64 + RECORD as u64 * n,
+                bytes.len()
+            ),
+        })
+    } else {
+        Err(ReadErrorKind::Malformed {
+            place: "byte 0".into(),
+            message: format!(
+                "{} bytes is too short for a binary STL and it does not start like an ASCII STL",
+                bytes.len()
+            ),
+        })
+    }
+}
+
+/// Welds corners with bit-identical coordinates (+0 and -0 taken as equal) into vertices.
+struct Welder {
+    index: HashMap<[u32; 3], u32>,
+    positions: Vec<[f32; 3]>,
+}
+
+impl Welder {
+    fn with_capacity(n: usize) -> Self {
+        Self {
+            index: HashMap::with_capacity(n),
+            positions: Vec::with_capacity(n),
+        }
+    }
+
+    fn vertex(&mut self, p: [f32; 3]) -> u32 {
+        let key = p.map(|v| (v + 0.0).to_bits());
+        let next = self.positions.len() as u32;
+        *self.index.entry(key).or_insert_with(|| {
+            self.positions.push(p);
+            next
+        })
+    }
+}
+
+fn space_comment(text: &[u8]) -> Vec<String> {
+    let text = String::from_utf8_lossy(text);
+    text.split(|c: char| c.is_whitespace() || c == '\0')
+        .find(|w| w.starts_with("SPACE=") && w.len() > "SPACE=".len())
+        .map(|w| vec![w.to_string()])
+        .unwrap_or_default()
+}
+
+fn decode_binary(bytes: &[u8]) -> DecodeResult {
+    let n = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as usize;
+    check_size(n.saturating_mul(3), n)?;
+    let mut welder = Welder::with_capacity(n / 2 + 3);
+    let mut triangles = Vec::with_capacity(n);
+    for i in 0..n {
+        let record = HEADER + 4 + RECORD * i;
+        let mut t = [0u32; 3];
+        for (k, slot) in t.iter_mut().enumerate() {
+            let o = record + 12 + 12 * k;
+            let p: [f32; 3] = std::array::from_fn(|a| {
+                let b = o + 4 * a;
+                f32::from_le_bytes([bytes[b], bytes[b + 1], bytes[b + 2], bytes[b + 3]])
+            });
+            if let Some(a) = (0..3).find(|&a| !p[a].is_finite()) {
+                return Err(ReadErrorKind::NonFinite {
+                    place: format!("triangle {i} corner {k} (byte {})", o + 4 * a),
+                    value: p[a] as f64,
+                });
+            }
+            *slot = welder.vertex(p);
+        }
+        triangles.push(t);
+    }
+    Ok(LoadedMesh {
+        mesh: Mesh::from_checked_parts(welder.positions, triangles),
+        meta: MeshMeta {
+            comments: space_comment(&bytes[..HEADER]),
+            obj_info: Vec::new(),
+        },
+        vertex_properties: Vec::new(),
+        warnings: Vec::new(),
+        format: SourceFormat::StlBinary,
+    })
+}
+
+fn decode_ascii(bytes: &[u8]) -> DecodeResult {
+    let mut c = TextCursor::new(bytes, 1);
+    let mut welder = Welder::with_capacity(0);
+    let mut triangles = Vec::new();
+    let mut comments = Vec::new();
+    let mut stats = FaceStats::default();
+    let mut warnings = Vec::new();
+    let mut polygon: Vec<u32> = Vec::new();
+    let malformed = |c: &TextCursor, message: String| ReadErrorKind::Malformed {
+        place: format!("line {}", c.line()),
+        message,
+    };
+    let expect = |c: &mut TextCursor, word: &str| -> Result<(), ReadErrorKind> {
+        match c.token() {
+            Some(t) if t == word.as_bytes() => Ok(()),
+            Some(t) => Err(malformed(
+                c,
+                format!("expected {word:?}, found {:?}", show(t)),
+            )),
+            None => Err(ReadErrorKind::Truncated {
+                place: format!("line {} (expected {word:?})", c.line()),
+            }),
+        }
+    };
+    let number = |c: &mut TextCursor| -> Result<f64, ReadErrorKind> {
+        match c.token() {
+            Some(t) => {
+                parse_f64(t).ok_or_else(|| malformed(c, format!("{:?} is not a number", show(t))))
+            }
+            None => Err(ReadErrorKind::Truncated {
+                place: format!("line {} (expected a number)", c.line()),
+            }),
+        }
+    };
+    expect(&mut c, "solid")?;
+    comments.extend(space_comment(c.rest_of_line()));
+    loop {
+        let line = c.line();
+        match c.token() {
+            Some(b"facet") => {
+                expect(&mut c, "normal")?;
+                for _ in 0..3 {
+                    number(&mut c)?;
+                }
+                expect(&mut c, "outer")?;
+                expect(&mut c, "loop")?;
+                polygon.clear();
+                loop {
+                    match c.token() {
+                        Some(b"vertex") => {
+                            let xyz = [number(&mut c)?, number(&mut c)?, number(&mut c)?];
+                            let p = xyz.map(|v| v as f32);
+                            if let Some(a) = (0..3).find(|&a| !p[a].is_finite()) {
+                                return Err(ReadErrorKind::NonFinite {
+                                    place: format!("line {}", c.line()),
+                                    value: xyz[a],
+                                });
+                            }
+                            polygon.push(welder.vertex(p));
+                        }
+                        Some(b"endloop") => break,
+                        Some(t) => {
+                            return Err(malformed(
+                                &c,
+                                format!("expected \"vertex\" or \"endloop\", found {:?}", show(t)),
+                            ))
+                        }
+                        None => {
+                            return Err(ReadErrorKind::Truncated {
+                                place: format!("line {} (inside a facet)", c.line()),
+                            })
+                        }
+                    }
+                }
+                expect(&mut c, "endfacet")?;
+                stats.push_polygon(&polygon, &mut triangles);
+            }
+            Some(b"endsolid") => {
+                c.rest_of_line();
+                match c.token() {
+                    None => break,
+                    Some(b"solid") => {
+                        c.rest_of_line();
+                    }
+                    Some(t) => {
+                        return Err(malformed(
+                            &c,
+                            format!(
+                                "expected \"solid\" or the end of the file, found {:?}",
+                                show(t)
+                            ),
+                        ))
+                    }
+                }
+            }
+            Some(t) => {
+                return Err(ReadErrorKind::Malformed {
+                    place: format!("line {line}"),
+                    message: format!("expected \"facet\" or \"endsolid\", found {:?}", show(t)),
+                })
+            }
+            None => {
+                warnings.push("the file ends without \"endsolid\"".into());
+                break;
+            }
+        }
+    }
+    check_size(welder.positions.len(), triangles.len())?;
+    stats.warnings(&mut warnings);
+    Ok(LoadedMesh {
+        mesh: Mesh::from_checked_parts(welder.positions, triangles),
+        meta: MeshMeta {
+            comments,
+            obj_info: Vec::new(),
+        },
+        vertex_properties: Vec::new(),
+        warnings,
+        format: SourceFormat::StlAscii,
+    })
+}
+
+/// Writes `mesh` as binary STL, atomically.
+pub fn write_stl(path: &Path, mesh: &Mesh, meta: &MeshMeta) -> Result<(), WriteError> {
+    let bytes = encode_stl(mesh, meta);
+    write_atomically(path, |w| w.write_all(&bytes)).map_err(|source| WriteError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// Encodes binary STL. The 80-byte header starts with "destair" (never "solid", which makes
+/// readers misdetect ASCII) and carries the `SPACE=` tag when the mesh has one.
+pub fn encode_stl(mesh: &Mesh, meta: &MeshMeta) -> Vec<u8> {
+    let mut header = String::from("destair binary STL");
+    if let Some(space) = meta.space() {
+        header.push_str(" SPACE=");
+        header.push_str(space);
+    }
+    let n = mesh.n_triangles();
+    let mut out = vec![0u8; HEADER + 4 + RECORD * n];
+    let h = header.as_bytes();
+    out[..h.len().min(HEADER)].copy_from_slice(&h[..h.len().min(HEADER)]);
+    out[HEADER..HEADER + 4].copy_from_slice(&(n as u32).to_le_bytes());
+    let p = mesh.positions();
+    out[HEADER + 4..]
+        .par_chunks_mut(RECORD)
+        .zip(mesh.triangles().par_iter())
+        .for_each(|(record, &t)| {
+            let normal = normalize(triangle_area_vector(mesh, t));
+            let values = normal
+                .iter()
+                .chain(t.iter().flat_map(|&v| p[v as usize].iter()));
+            for (slot, v) in record.chunks_exact_mut(4).zip(values) {
+                slot.copy_from_slice(&v.to_le_bytes());
+            }
+        });
+    out
+}

@@ -1,0 +1,14 @@
+//! destair: removes staircase and terrace artifacts from medical surface meshes in bulk, while
+//! keeping inter-structure distances, flat caps, volume and artifact-free surface in place.
+//!
+//! See ARCHITECTURE.md for the map of modules; each module is one concept.
+
+pub mod analysis;
+pub mod io;
+pub mod mesh;
+pub mod metrics;
+pub mod parallel;
+pub mod report;
+
+pub use mesh::{Mesh, Topology};
+pub mod bench;

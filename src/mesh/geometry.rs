@@ -1,0 +1,236 @@
+//! Per-face and per-vertex geometry: normals, areas, enclosed volume, bounding box.
+//!
+//! Sums accumulate in f64 over fixed blocks ([`crate::parallel`]) so results are the same for
+//! any thread count.
+
+use crate::mesh::{Mesh, Topology};
+use crate::parallel::deterministic_sum;
+use rayon::prelude::*;
+
+/// Axis-aligned bounding box in mm.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct BoundingBox {
+    pub min: [f32; 3],
+    pub max: [f32; 3],
+}
+
+impl BoundingBox {
+    /// Edge lengths along x, y, z in mm.
+    pub fn extent(&self) -> [f32; 3] {
+        [
+            self.max[0] - self.min[0],
+            self.max[1] - self.min[1],
+            self.max[2] - self.min[2],
+        ]
+    }
+
+    /// Length of the box diagonal in mm.
+    pub fn diagonal(&self) -> f64 {
+        let e = self.extent();
+        e.iter()
+            .map(|&x| (x as f64) * (x as f64))
+            .sum::<f64>()
+            .sqrt()
+    }
+
+    /// Centre of the box in mm.
+    pub fn center(&self) -> [f64; 3] {
+        std::array::from_fn(|k| 0.5 * (self.min[k] as f64 + self.max[k] as f64))
+    }
+}
+
+/// Bounding box of all vertices (unreferenced included); `None` for a mesh without vertices.
+pub fn bounding_box(mesh: &Mesh) -> Option<BoundingBox> {
+    let p = mesh.positions();
+    let first = *p.first()?;
+    let (min, max) = p.iter().fold((first, first), |(mut lo, mut hi), q| {
+        for k in 0..3 {
+            lo[k] = lo[k].min(q[k]);
+            hi[k] = hi[k].max(q[k]);
+        }
+        (lo, hi)
+    });
+    Some(BoundingBox { min, max })
+}
+
+#[inline]
+pub(crate) fn sub(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+#[inline]
+pub(crate) fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+#[inline]
+pub(crate) fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+#[inline]
+fn to_f64(a: [f32; 3]) -> [f64; 3] {
+    [a[0] as f64, a[1] as f64, a[2] as f64]
+}
+
+/// Unit vector along `v`, or zero when `v` has no length.
+#[inline]
+pub(crate) fn normalize(v: [f32; 3]) -> [f32; 3] {
+    let len = dot(v, v).sqrt();
+    if len > 0.0 && len.is_finite() {
+        [v[0] / len, v[1] / len, v[2] / len]
+    } else {
+        [0.0; 3]
+    }
+}
+
+/// Cross product of a triangle's edges: normal direction with length twice the area (mm²).
+#[inline]
+pub fn triangle_area_vector(mesh: &Mesh, triangle: [u32; 3]) -> [f32; 3] {
+    let p = mesh.positions();
+    let (a, b, c) = (
+        p[triangle[0] as usize],
+        p[triangle[1] as usize],
+        p[triangle[2] as usize],
+    );
+    cross(sub(b, a), sub(c, a))
+}
+
+/// Unit normal per triangle (right-hand rule); zero for triangles without area.
+pub fn face_normals(mesh: &Mesh) -> Vec<[f32; 3]> {
+    mesh.triangles()
+        .par_iter()
+        .map(|&t| normalize(triangle_area_vector(mesh, t)))
+        .collect()
+}
+
+/// Area-weighted unit vertex normals; zero for unreferenced vertices or cancelling normals.
+pub fn vertex_normals(mesh: &Mesh, topology: &Topology) -> Vec<[f32; 3]> {
+    let tris = mesh.triangles();
+    (0..mesh.n_vertices())
+        .into_par_iter()
+        .map(|v| {
+            let mut sum = [0.0f32; 3];
+            for &f in topology.vertex_faces(v) {
+                let n = triangle_area_vector(mesh, tris[f as usize]);
+                for k in 0..3 {
+                    sum[k] += n[k];
+                }
+            }
+            normalize(sum)
+        })
+        .collect()
+}
+
+/// Total surface area in mm² (f64 accumulation).
+pub fn area(mesh: &Mesh) -> f64 {
+    let p = mesh.positions();
+    let tris = mesh.triangles();
+    deterministic_sum(tris.len(), |i| {
+        let t = tris[i];
+        let (a, b, c) = (
+            to_f64(p[t[0] as usize]),
+            to_f64(p[t[1] as usize]),
+            to_f64(p[t[2] as usize]),
+        );
+        let n = cross64(sub64(b, a), sub64(c, a));
+        0.5 * (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt()
+    })
+}
+
+/// Signed enclosed volume in mm³ by the divergence theorem, positive for outward-oriented
+/// closed meshes. Computed about the bounding-box centre, which for a closed mesh gives the
+/// same value with less cancellation; for an open mesh the value depends on that choice.
+pub fn signed_volume(mesh: &Mesh) -> f64 {
+    let Some(bbox) = bounding_box(mesh) else {
+        return 0.0;
+    };
+    let o = bbox.center();
+    let p = mesh.positions();
+    let tris = mesh.triangles();
+    let rel = |v: u32| {
+        let q = p[v as usize];
+        [q[0] as f64 - o[0], q[1] as f64 - o[1], q[2] as f64 - o[2]]
+    };
+    deterministic_sum(tris.len(), |i| {
+        let t = tris[i];
+        let (a, b, c) = (rel(t[0]), rel(t[1]), rel(t[2]));
+        let n = cross64(b, c);
+        (a[0] * n[0] + a[1] * n[1] + a[2] * n[2]) / 6.0
+    })
+}
+
+#[inline]
+fn sub64(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+#[inline]
+fn cross64(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Unit cube, outward-oriented, 12 triangles.
+    pub(crate) fn cube() -> Mesh {
+        let p: Vec<[f32; 3]> = (0..8)
+            .map(|i| [(i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32])
+            .collect();
+        let quads = [
+            [0, 2, 3, 1], // z = 0, normal -z
+            [4, 5, 7, 6], // z = 1
+            [0, 1, 5, 4], // y = 0
+            [2, 6, 7, 3], // y = 1
+            [0, 4, 6, 2], // x = 0
+            [1, 3, 7, 5], // x = 1
+        ];
+        let t = quads
+            .iter()
+            .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
+            .collect();
+        Mesh::new(p, t).unwrap()
+    }
+
+    #[test]
+    fn cube_area_volume_normals() {
+        let m = cube();
+        let topo = Topology::build(&m);
+        assert!(topo.is_closed_oriented_manifold());
+        assert_eq!(area(&m), 6.0);
+        assert!((signed_volume(&m) - 1.0).abs() < 1e-12);
+        let fnorm = face_normals(&m);
+        assert_eq!(fnorm[0], [0.0, 0.0, -1.0]);
+        assert_eq!(fnorm[2], [0.0, 0.0, 1.0]);
+        let vn = vertex_normals(&m, &topo);
+        // Corner 7 = (1,1,1): normal points along the diagonal.
+        let s = 1.0 / 3f32.sqrt();
+        for c in vn[7] {
+            assert!(c > 0.0 && (c - s).abs() < 0.2);
+        }
+        let b = bounding_box(&m).unwrap();
+        assert_eq!(b.extent(), [1.0, 1.0, 1.0]);
+    }
+
+    #[test]
+    fn volume_is_translation_invariant_for_closed_meshes() {
+        let m = cube();
+        let (mut p, t) = m.into_parts();
+        for q in &mut p {
+            q[0] += 1000.0;
+            q[2] -= 250.0;
+        }
+        let moved = Mesh::new(p, t).unwrap();
+        assert!((signed_volume(&moved) - 1.0).abs() < 1e-9);
+    }
+}

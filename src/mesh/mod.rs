@@ -1,0 +1,152 @@
+//! The in-memory triangle mesh: flat `[f32; 3]` positions and `[u32; 3]` triangles.
+//!
+//! A `Mesh` is validated on construction (finite coordinates, indices in range), so every
+//! algorithm downstream can index without checks. Topology is built once, separately
+//! ([`Topology::build`]), because many callers (writers, converters) never need it.
+
+pub mod geometry;
+pub mod topology;
+
+pub use topology::Topology;
+
+use thiserror::Error;
+
+/// Why a set of positions and triangles is not a valid mesh.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum MeshError {
+    /// A triangle refers to a vertex that does not exist.
+    #[error(
+        "triangle {triangle} refers to vertex {index}, but the mesh has {n_vertices} vertices"
+    )]
+    IndexOutOfRange {
+        triangle: usize,
+        index: u32,
+        n_vertices: usize,
+    },
+    /// A vertex coordinate is NaN or infinite.
+    #[error("vertex {vertex} has a non-finite coordinate ({x}, {y}, {z})")]
+    NonFinite {
+        vertex: usize,
+        x: f32,
+        y: f32,
+        z: f32,
+    },
+    /// More vertices or triangles than 32-bit indices and CSR offsets can address.
+    #[error("mesh too large: {n_vertices} vertices and {n_triangles} triangles (at most {max} of each, and 3 x triangles must fit in 32 bits)", max = u32::MAX)]
+    TooLarge {
+        n_vertices: usize,
+        n_triangles: usize,
+    },
+}
+
+/// A triangle mesh in millimetres. Vertex order is the file's order and is never changed,
+/// so per-vertex outputs (weights, displacements) line up with the input file.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Mesh {
+    positions: Vec<[f32; 3]>,
+    triangles: Vec<[u32; 3]>,
+}
+
+impl Mesh {
+    /// Builds a mesh after checking every index and coordinate.
+    pub fn new(positions: Vec<[f32; 3]>, triangles: Vec<[u32; 3]>) -> Result<Self, MeshError> {
+        check_size(positions.len(), triangles.len())?;
+        if let Some(vertex) = positions
+            .iter()
+            .position(|p| !(p[0].is_finite() && p[1].is_finite() && p[2].is_finite()))
+        {
+            let [x, y, z] = positions[vertex];
+            return Err(MeshError::NonFinite { vertex, x, y, z });
+        }
+        let n = positions.len();
+        for (triangle, t) in triangles.iter().enumerate() {
+            if let Some(&index) = t.iter().find(|&&i| i as usize >= n) {
+                return Err(MeshError::IndexOutOfRange {
+                    triangle,
+                    index,
+                    n_vertices: n,
+                });
+            }
+        }
+        Ok(Self {
+            positions,
+            triangles,
+        })
+    }
+
+    /// Builds a mesh from parts the caller has already validated (readers check each index
+    /// and coordinate while decoding, so checking again would cost a second pass).
+    pub(crate) fn from_checked_parts(positions: Vec<[f32; 3]>, triangles: Vec<[u32; 3]>) -> Self {
+        debug_assert!(Mesh::new(positions.clone(), triangles.clone()).is_ok());
+        Self {
+            positions,
+            triangles,
+        }
+    }
+
+    /// Vertex positions in mm, in file order.
+    pub fn positions(&self) -> &[[f32; 3]] {
+        &self.positions
+    }
+
+    /// Mutable positions for smoothers; indices stay valid whatever is written here.
+    pub fn positions_mut(&mut self) -> &mut [[f32; 3]] {
+        &mut self.positions
+    }
+
+    /// Triangles as vertex indices, counter-clockwise seen from outside for oriented meshes.
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        &self.triangles
+    }
+
+    /// Number of vertices, including unreferenced ones.
+    pub fn n_vertices(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// Number of triangles.
+    pub fn n_triangles(&self) -> usize {
+        self.triangles.len()
+    }
+
+    /// Takes the mesh apart into its positions and triangles.
+    pub fn into_parts(self) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
+        (self.positions, self.triangles)
+    }
+}
+
+/// Checks that counts fit the 32-bit indices and CSR offsets used throughout.
+pub(crate) fn check_size(n_vertices: usize, n_triangles: usize) -> Result<(), MeshError> {
+    if n_vertices > u32::MAX as usize || n_triangles.saturating_mul(3) > u32::MAX as usize {
+        return Err(MeshError::TooLarge {
+            n_vertices,
+            n_triangles,
+        });
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rejects_bad_index_and_nan() {
+        let p = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        assert!(Mesh::new(p.clone(), vec![[0, 1, 2]]).is_ok());
+        assert_eq!(
+            Mesh::new(p.clone(), vec![[0, 1, 2], [0, 1, 3]]),
+            Err(MeshError::IndexOutOfRange {
+                triangle: 1,
+                index: 3,
+                n_vertices: 3
+            })
+        );
+        let mut q = p;
+        q[1][2] = f32::NAN;
+        assert!(matches!(
+            Mesh::new(q, vec![]),
+            Err(MeshError::NonFinite { vertex: 1, .. })
+        ));
+    }
+}

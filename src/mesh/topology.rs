@@ -1,0 +1,611 @@
+//! Mesh connectivity, built once per mesh: CSR vertex->vertex and vertex->face adjacency, the
+//! edge table, and the findings `inspect` reports (boundary loops, non-manifold edges and
+//! vertices, orientation consistency, connected components, Euler characteristic).
+//!
+//! Triangles with a repeated vertex index are degenerate: they are listed and left out of all
+//! adjacency, since they have no well-defined edges or normal.
+
+use crate::mesh::Mesh;
+use rayon::prelude::*;
+use std::ops::Range;
+
+/// Vertices per parallel block when a CSR array is split among threads.
+const VERTEX_BLOCK: usize = 8192;
+
+/// One boundary loop: vertices in order along edges that have a single incident face.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BoundaryLoop {
+    /// Vertex indices along the loop, first vertex not repeated at the end.
+    pub vertices: Vec<u32>,
+    /// False when the chain could not be closed (it runs into a non-manifold vertex).
+    pub closed: bool,
+}
+
+/// Connectivity and topological findings of a [`Mesh`].
+#[derive(Debug, Clone)]
+pub struct Topology {
+    vv_offsets: Vec<u32>,
+    vv_neighbors: Vec<u32>,
+    vf_offsets: Vec<u32>,
+    vf_faces: Vec<u32>,
+    edges: Vec<[u32; 2]>,
+    edge_n_faces: Vec<u32>,
+    boundary_loops: Vec<BoundaryLoop>,
+    non_manifold_edges: Vec<u32>,
+    non_manifold_vertices: Vec<u32>,
+    inconsistent_edges: Vec<u32>,
+    degenerate_triangles: Vec<u32>,
+    unreferenced_vertices: Vec<u32>,
+    vertex_component: Vec<u32>,
+    n_components: usize,
+}
+
+impl Topology {
+    /// Builds all adjacency and findings; O(F log valence), parallel where it pays.
+    pub fn build(mesh: &Mesh) -> Topology {
+        let n = mesh.n_vertices();
+        let tris = mesh.triangles();
+        let is_degenerate = |t: &[u32; 3]| t[0] == t[1] || t[1] == t[2] || t[0] == t[2];
+        let degenerate_triangles: Vec<u32> = tris
+            .iter()
+            .enumerate()
+            .filter(|(_, t)| is_degenerate(t))
+            .map(|(i, _)| i as u32)
+            .collect();
+        let valid = |t: &[u32; 3]| !is_degenerate(t);
+
+        // Vertex -> face CSR, faces ascending per vertex.
+        let mut vf_offsets = vec![0u32; n + 1];
+        for t in tris.iter().filter(|t| valid(t)) {
+            for &v in t {
+                vf_offsets[v as usize + 1] += 1;
+            }
+        }
+        prefix_sum(&mut vf_offsets);
+        let mut cursor: Vec<u32> = vf_offsets[..n].to_vec();
+        let mut vf_faces = vec![0u32; vf_offsets[n] as usize];
+        for (f, t) in tris.iter().enumerate().filter(|(_, t)| valid(t)) {
+            for &v in t {
+                let c = &mut cursor[v as usize];
+                vf_faces[*c as usize] = f as u32;
+                *c += 1;
+            }
+        }
+
+        // One parallel sweep over vertex blocks: each vertex gathers the spokes of its faces,
+        // which give its sorted neighbours, the edges it owns (those to larger vertices) with
+        // their face counts and orientation, and its fans. Blocks are concatenated in order.
+        let blocks: Vec<BlockTopology> = vertex_blocks(n)
+            .into_par_iter()
+            .map_init(Spokes::default, |spokes, range| {
+                block_topology(tris, &vf_offsets, &vf_faces, range, spokes)
+            })
+            .collect();
+        let (vv_offsets, vv_neighbors, edges, edge_n_faces) = concatenate(&blocks, n);
+        let mut non_manifold_edges = Vec::new();
+        let mut inconsistent_edges = Vec::new();
+        let mut boundary_edges = Vec::new();
+        let mut non_manifold_vertices = Vec::new();
+        let mut first_edge = 0u32;
+        for b in &blocks {
+            non_manifold_edges.extend(b.non_manifold_edges.iter().map(|e| first_edge + e));
+            inconsistent_edges.extend(b.inconsistent_edges.iter().map(|e| first_edge + e));
+            boundary_edges.extend_from_slice(&b.boundary_edges);
+            non_manifold_vertices.extend_from_slice(&b.non_manifold_vertices);
+            first_edge += b.edges.len() as u32;
+        }
+        drop(blocks);
+
+        let unreferenced_vertices: Vec<u32> = (0..n)
+            .filter(|&v| vf_offsets[v] == vf_offsets[v + 1])
+            .map(|v| v as u32)
+            .collect();
+        let (vertex_component, n_components) = components(n, &edges, &vf_offsets);
+        let boundary_loops = boundary_loops(&boundary_edges);
+
+        Topology {
+            vv_offsets,
+            vv_neighbors,
+            vf_offsets,
+            vf_faces,
+            edges,
+            edge_n_faces,
+            boundary_loops,
+            non_manifold_edges,
+            non_manifold_vertices,
+            inconsistent_edges,
+            degenerate_triangles,
+            unreferenced_vertices,
+            vertex_component,
+            n_components,
+        }
+    }
+
+    /// Number of vertices the topology was built for.
+    pub fn n_vertices(&self) -> usize {
+        self.vv_offsets.len() - 1
+    }
+
+    /// Neighbours of a vertex along mesh edges, sorted ascending.
+    pub fn neighbors(&self, vertex_idx: usize) -> &[u32] {
+        &self.vv_neighbors
+            [self.vv_offsets[vertex_idx] as usize..self.vv_offsets[vertex_idx + 1] as usize]
+    }
+
+    /// The raw vertex->vertex CSR arrays (offsets of length n+1, neighbours) for hot loops.
+    pub fn neighbor_csr(&self) -> (&[u32], &[u32]) {
+        (&self.vv_offsets, &self.vv_neighbors)
+    }
+
+    /// Non-degenerate triangles incident to a vertex, ascending.
+    pub fn vertex_faces(&self, vertex_idx: usize) -> &[u32] {
+        &self.vf_faces
+            [self.vf_offsets[vertex_idx] as usize..self.vf_offsets[vertex_idx + 1] as usize]
+    }
+
+    /// The raw vertex->face CSR arrays (offsets of length n+1, faces) for hot loops.
+    pub fn face_csr(&self) -> (&[u32], &[u32]) {
+        (&self.vf_offsets, &self.vf_faces)
+    }
+
+    /// Unique undirected edges as (smaller, larger) vertex index, sorted.
+    pub fn edges(&self) -> &[[u32; 2]] {
+        &self.edges
+    }
+
+    /// Number of triangles on each edge of [`Topology::edges`] (1 boundary, 2 manifold, more non-manifold).
+    pub fn edge_n_faces(&self) -> &[u32] {
+        &self.edge_n_faces
+    }
+
+    /// Boundary loops (open rims, clipped vessel ends), each walked in the direction its faces give.
+    pub fn boundary_loops(&self) -> &[BoundaryLoop] {
+        &self.boundary_loops
+    }
+
+    /// Edges (indices into [`Topology::edges`]) shared by more than two triangles.
+    pub fn non_manifold_edges(&self) -> &[u32] {
+        &self.non_manifold_edges
+    }
+
+    /// Vertices whose incident triangles form more than one edge-connected fan (pinch points).
+    pub fn non_manifold_vertices(&self) -> &[u32] {
+        &self.non_manifold_vertices
+    }
+
+    /// Manifold edges whose two triangles walk them in the same direction (flipped orientation).
+    pub fn inconsistent_edges(&self) -> &[u32] {
+        &self.inconsistent_edges
+    }
+
+    /// Triangles with a repeated vertex index; left out of all adjacency.
+    pub fn degenerate_triangles(&self) -> &[u32] {
+        &self.degenerate_triangles
+    }
+
+    /// Vertices used by no non-degenerate triangle (kept so vertex order survives).
+    pub fn unreferenced_vertices(&self) -> &[u32] {
+        &self.unreferenced_vertices
+    }
+
+    /// Component index per vertex (numbered by smallest vertex), `u32::MAX` if unreferenced.
+    pub fn vertex_component(&self) -> &[u32] {
+        &self.vertex_component
+    }
+
+    /// Number of edge-connected components among referenced vertices.
+    pub fn n_components(&self) -> usize {
+        self.n_components
+    }
+
+    /// Whether every edge has two triangles, consistently oriented, and every vertex one fan.
+    pub fn is_closed_oriented_manifold(&self) -> bool {
+        self.boundary_loops.is_empty()
+            && self.non_manifold_edges.is_empty()
+            && self.non_manifold_vertices.is_empty()
+            && self.inconsistent_edges.is_empty()
+    }
+
+    /// Euler characteristic V - E + F over referenced vertices and non-degenerate triangles
+    /// (2 for a closed sphere-like surface, 2 per component).
+    pub fn euler_characteristic(&self) -> i64 {
+        let v = (self.n_vertices() - self.unreferenced_vertices.len()) as i64;
+        let f = (self.vf_faces.len() / 3) as i64;
+        v - self.edges.len() as i64 + f
+    }
+}
+
+/// Exclusive-to-inclusive prefix sum over a counts array whose entry 0 is 0.
+fn prefix_sum(offsets: &mut [u32]) {
+    for i in 1..offsets.len() {
+        offsets[i] += offsets[i - 1];
+    }
+}
+
+/// Vertex ranges of at most `VERTEX_BLOCK` vertices covering 0..n.
+fn vertex_blocks(n: usize) -> Vec<Range<usize>> {
+    (0..n.div_ceil(VERTEX_BLOCK))
+        .map(|b| b * VERTEX_BLOCK..((b + 1) * VERTEX_BLOCK).min(n))
+        .collect()
+}
+
+/// Union-find over edges; components numbered in order of their smallest vertex.
+fn components(n: usize, edges: &[[u32; 2]], vf_offsets: &[u32]) -> (Vec<u32>, usize) {
+    let mut parent: Vec<u32> = (0..n as u32).collect();
+    fn find(parent: &mut [u32], mut x: u32) -> u32 {
+        while parent[x as usize] != x {
+            let grand = parent[parent[x as usize] as usize];
+            parent[x as usize] = grand;
+            x = grand;
+        }
+        x
+    }
+    for &[a, b] in edges {
+        let (ra, rb) = (find(&mut parent, a), find(&mut parent, b));
+        if ra != rb {
+            // Smaller index becomes the root, so roots are each component's smallest vertex.
+            let (lo, hi) = (ra.min(rb), ra.max(rb));
+            parent[hi as usize] = lo;
+        }
+    }
+    let mut label = vec![u32::MAX; n];
+    let mut n_components = 0usize;
+    for v in 0..n {
+        if vf_offsets[v] == vf_offsets[v + 1] {
+            continue;
+        }
+        let root = find(&mut parent, v as u32) as usize;
+        if label[root] == u32::MAX {
+            label[root] = n_components as u32;
+            n_components += 1;
+        }
+        label[v] = label[root];
+    }
+    (label, n_components)
+}
+
+/// Scratch buffers reused across the vertices a worker handles.
+#[derive(Default)]
+struct Spokes {
+    /// Every face corner at v packed as other vertex << 32 | local face << 1 | (face walks
+    /// v -> other), so one integer sort groups spokes by neighbour.
+    spokes: Vec<u64>,
+    parent: Vec<u32>,
+}
+
+/// Topology of one block of vertices; edge indices are local to the block.
+#[derive(Default)]
+struct BlockTopology {
+    /// Running neighbour count at the end of each vertex, relative to the block.
+    degree_ends: Vec<u32>,
+    neighbors: Vec<u32>,
+    edges: Vec<[u32; 2]>,
+    edge_n_faces: Vec<u32>,
+    non_manifold_edges: Vec<u32>,
+    inconsistent_edges: Vec<u32>,
+    boundary_edges: Vec<[u32; 2]>,
+    non_manifold_vertices: Vec<u32>,
+}
+
+fn block_topology(
+    tris: &[[u32; 3]],
+    vf_offsets: &[u32],
+    vf_faces: &[u32],
+    range: Range<usize>,
+    scratch: &mut Spokes,
+) -> BlockTopology {
+    let first_face = vf_offsets[range.start] as usize;
+    let n_corners = vf_offsets[range.end] as usize - first_face;
+    let mut out = BlockTopology {
+        degree_ends: Vec::with_capacity(range.len()),
+        // On a closed manifold a vertex has as many neighbours as faces.
+        neighbors: Vec::with_capacity(n_corners),
+        edges: Vec::with_capacity(n_corners / 2),
+        edge_n_faces: Vec::with_capacity(n_corners / 2),
+        ..Default::default()
+    };
+    for v in range {
+        let faces = &vf_faces[vf_offsets[v] as usize..vf_offsets[v + 1] as usize];
+        let spokes = &mut scratch.spokes;
+        spokes.clear();
+        for (local, &f) in faces.iter().enumerate() {
+            let t = tris[f as usize];
+            let k = if t[0] == v as u32 {
+                0
+            } else if t[1] == v as u32 {
+                1
+            } else {
+                2
+            };
+            let local = (local as u64) << 1;
+            spokes.push((t[(k + 1) % 3] as u64) << 32 | local | 1);
+            spokes.push((t[(k + 2) % 3] as u64) << 32 | local);
+        }
+        spokes.sort_unstable();
+        let parent = &mut scratch.parent;
+        parent.clear();
+        parent.extend(0..faces.len() as u32);
+        let mut fans = faces.len();
+        let mut i = 0;
+        let other = |s: u64| (s >> 32) as u32;
+        let local = |s: u64| (s as u32) >> 1;
+        while i < spokes.len() {
+            let u = other(spokes[i]);
+            let mut j = i + 1;
+            while j < spokes.len() && other(spokes[j]) == u {
+                let (ra, rb) = (
+                    find_local(parent, local(spokes[i])),
+                    find_local(parent, local(spokes[j])),
+                );
+                if ra != rb {
+                    parent[ra.max(rb) as usize] = ra.min(rb);
+                    fans -= 1;
+                }
+                j += 1;
+            }
+            out.neighbors.push(u);
+            if u > v as u32 {
+                let run = &spokes[i..j];
+                let edge = out.edges.len() as u32;
+                out.edges.push([v as u32, u]);
+                out.edge_n_faces.push(run.len() as u32);
+                match run {
+                    // Keep the direction the single face walks the edge in.
+                    [s] => out.boundary_edges.push(if s & 1 == 1 {
+                        [v as u32, u]
+                    } else {
+                        [u, v as u32]
+                    }),
+                    [a, b] => {
+                        if a & 1 == b & 1 {
+                            out.inconsistent_edges.push(edge);
+                        }
+                    }
+                    _ => out.non_manifold_edges.push(edge),
+                }
+            }
+            i = j;
+        }
+        if fans > 1 {
+            out.non_manifold_vertices.push(v as u32);
+        }
+        out.degree_ends.push(out.neighbors.len() as u32);
+    }
+    out
+}
+
+/// Joins the blocks' neighbour lists and edges into global CSR and edge arrays, copying the
+/// blocks in parallel into disjoint slices.
+#[allow(clippy::type_complexity)]
+fn concatenate(
+    blocks: &[BlockTopology],
+    n: usize,
+) -> (Vec<u32>, Vec<u32>, Vec<[u32; 2]>, Vec<u32>) {
+    let mut neighbor_starts = Vec::with_capacity(blocks.len());
+    let (mut n_neighbors, mut n_edges) = (0usize, 0usize);
+    for b in blocks {
+        neighbor_starts.push(n_neighbors);
+        n_neighbors += b.neighbors.len();
+        n_edges += b.edges.len();
+    }
+    let mut vv_offsets = vec![0u32; n + 1];
+    let mut vv_neighbors = vec![0u32; n_neighbors];
+    let mut edges = vec![[0u32; 2]; n_edges];
+    let mut edge_n_faces = vec![0u32; n_edges];
+    let offset_parts = split_lengths(
+        blocks.iter().map(|b| b.degree_ends.len()),
+        &mut vv_offsets[1..],
+    );
+    let neighbor_parts = split_lengths(blocks.iter().map(|b| b.neighbors.len()), &mut vv_neighbors);
+    let edge_parts = split_lengths(blocks.iter().map(|b| b.edges.len()), &mut edges);
+    let count_parts = split_lengths(blocks.iter().map(|b| b.edges.len()), &mut edge_n_faces);
+    blocks
+        .par_iter()
+        .zip(neighbor_starts)
+        .zip(offset_parts)
+        .zip(neighbor_parts)
+        .zip(edge_parts)
+        .zip(count_parts)
+        .for_each(|(((((b, start), offsets), neighbors), edges), counts)| {
+            for (o, &d) in offsets.iter_mut().zip(&b.degree_ends) {
+                *o = start as u32 + d;
+            }
+            neighbors.copy_from_slice(&b.neighbors);
+            edges.copy_from_slice(&b.edges);
+            counts.copy_from_slice(&b.edge_n_faces);
+        });
+    (vv_offsets, vv_neighbors, edges, edge_n_faces)
+}
+
+/// Splits `data` into consecutive mutable slices of the given lengths.
+fn split_lengths<T>(lengths: impl Iterator<Item = usize>, data: &mut [T]) -> Vec<&mut [T]> {
+    let mut parts = Vec::new();
+    let mut rest = data;
+    for len in lengths {
+        let (head, tail) = std::mem::take(&mut rest).split_at_mut(len);
+        parts.push(head);
+        rest = tail;
+    }
+    parts
+}
+
+fn find_local(parent: &mut [u32], mut x: u32) -> u32 {
+    while parent[x as usize] != x {
+        let grand = parent[parent[x as usize] as usize];
+        parent[x as usize] = grand;
+        x = grand;
+    }
+    x
+}
+
+/// Chains boundary half-edges into loops, preferring the faces' direction at each step.
+fn boundary_loops(boundary: &[[u32; 2]]) -> Vec<BoundaryLoop> {
+    if boundary.is_empty() {
+        return Vec::new();
+    }
+    // Incidence list: (vertex, edge index, is the vertex the edge's start), sorted by vertex.
+    let mut incidence: Vec<(u32, u32, bool)> = Vec::with_capacity(boundary.len() * 2);
+    for (e, &[a, b]) in boundary.iter().enumerate() {
+        incidence.push((a, e as u32, true));
+        incidence.push((b, e as u32, false));
+    }
+    // Outgoing incidences sort first for a vertex, so the walk follows face direction when it can.
+    incidence.sort_unstable_by_key(|&(v, e, start)| (v, !start, e));
+    let incident = |v: u32| {
+        let lo = incidence.partition_point(|&(w, _, _)| w < v);
+        let hi = incidence.partition_point(|&(w, _, _)| w <= v);
+        &incidence[lo..hi]
+    };
+    let mut used = vec![false; boundary.len()];
+    let mut loops = Vec::new();
+    for start in 0..boundary.len() {
+        if used[start] {
+            continue;
+        }
+        used[start] = true;
+        let [first, mut current] = boundary[start];
+        let mut vertices = vec![first, current];
+        let mut closed = false;
+        loop {
+            let next = incident(current)
+                .iter()
+                .find(|&&(_, e, _)| !used[e as usize])
+                .map(|&(_, e, is_start)| {
+                    let [a, b] = boundary[e as usize];
+                    (e, if is_start { b } else { a })
+                });
+            let Some((e, other)) = next else { break };
+            used[e as usize] = true;
+            if other == first {
+                closed = true;
+                break;
+            }
+            vertices.push(other);
+            current = other;
+        }
+        loops.push(BoundaryLoop { vertices, closed });
+    }
+    loops
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn mesh(p: &[[f32; 3]], t: &[[u32; 3]]) -> Mesh {
+        Mesh::new(p.to_vec(), t.to_vec()).unwrap()
+    }
+
+    fn tetrahedron() -> Mesh {
+        mesh(
+            &[[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [0., 0., 1.]],
+            &[[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]],
+        )
+    }
+
+    #[test]
+    fn tetrahedron_is_closed_manifold() {
+        let t = Topology::build(&tetrahedron());
+        assert_eq!(t.edges().len(), 6);
+        assert!(t.edge_n_faces().iter().all(|&c| c == 2));
+        assert!(t.is_closed_oriented_manifold());
+        assert_eq!(t.euler_characteristic(), 2);
+        assert_eq!(t.n_components(), 1);
+        assert_eq!(t.neighbors(0), &[1, 2, 3]);
+        assert_eq!(t.vertex_faces(3), &[1, 2, 3]);
+    }
+
+    #[test]
+    fn single_triangle_has_one_boundary_loop_in_face_order() {
+        let t = Topology::build(&mesh(
+            &[[0., 0., 0.], [1., 0., 0.], [0., 1., 0.]],
+            &[[0, 1, 2]],
+        ));
+        assert_eq!(
+            t.boundary_loops(),
+            &[BoundaryLoop {
+                vertices: vec![0, 1, 2],
+                closed: true
+            }]
+        );
+        assert_eq!(t.euler_characteristic(), 1);
+    }
+
+    #[test]
+    fn flipped_triangle_is_inconsistent() {
+        let m = mesh(
+            &[[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [0., 0., 1.]],
+            &[[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 2, 3]],
+        );
+        let t = Topology::build(&m);
+        assert_eq!(t.inconsistent_edges().len(), 3);
+        assert!(!t.is_closed_oriented_manifold());
+    }
+
+    #[test]
+    fn three_faces_on_an_edge_are_non_manifold() {
+        let m = mesh(
+            &[
+                [0., 0., 0.],
+                [1., 0., 0.],
+                [0., 1., 0.],
+                [0., -1., 0.],
+                [0., 0., 1.],
+            ],
+            &[[0, 1, 2], [1, 0, 3], [0, 1, 4]],
+        );
+        let t = Topology::build(&m);
+        assert_eq!(t.non_manifold_edges(), &[0]);
+        assert_eq!(t.edges()[0], [0, 1]);
+    }
+
+    #[test]
+    fn bowtie_vertex_and_unreferenced_and_degenerate() {
+        let m = mesh(
+            &[
+                [0., 0., 0.],
+                [1., 0., 0.],
+                [1., 1., 0.],
+                [-1., 0., 0.],
+                [-1., -1., 0.],
+                [9., 9., 9.],
+            ],
+            &[[0, 1, 2], [0, 3, 4], [1, 1, 2]],
+        );
+        let t = Topology::build(&m);
+        assert_eq!(t.non_manifold_vertices(), &[0]);
+        assert_eq!(t.unreferenced_vertices(), &[5]);
+        assert_eq!(t.degenerate_triangles(), &[2]);
+        assert_eq!(t.n_components(), 1);
+        assert_eq!(t.vertex_component()[5], u32::MAX);
+        // The two fans share vertex 0, so their rims form one chain through it.
+        let n_loop_vertices: usize = t.boundary_loops().iter().map(|l| l.vertices.len()).sum();
+        assert_eq!(n_loop_vertices, 6);
+    }
+
+    #[test]
+    fn two_separate_triangles_are_two_components() {
+        let m = mesh(
+            &[
+                [0., 0., 0.],
+                [1., 0., 0.],
+                [0., 1., 0.],
+                [5., 0., 0.],
+                [6., 0., 0.],
+                [5., 1., 0.],
+            ],
+            &[[3, 4, 5], [0, 1, 2]],
+        );
+        let t = Topology::build(&m);
+        assert_eq!(t.n_components(), 2);
+        assert_eq!(t.vertex_component(), &[0, 0, 0, 1, 1, 1]);
+        assert_eq!(t.boundary_loops().len(), 2);
+    }
+
+    #[test]
+    fn empty_mesh() {
+        let t = Topology::build(&Mesh::default());
+        assert_eq!(t.edges().len(), 0);
+        assert_eq!(t.euler_characteristic(), 0);
+    }
+}

@@ -1,0 +1,49 @@
+//! Parallel helpers whose results do not depend on the thread count.
+//!
+//! Floating-point sums depend on the order of additions; rayon's `sum` splits work by thread
+//! count. Here work is cut into fixed-size blocks, each summed sequentially in parallel, and the
+//! block sums are added in block order, so the bits are identical for 1 or N threads.
+
+use rayon::prelude::*;
+
+/// Items per block in deterministic reductions.
+pub const REDUCE_BLOCK: usize = 16_384;
+
+/// Sum of `term(i)` for `i` in `0..n`, identical for every thread count.
+pub fn deterministic_sum<F>(n: usize, term: F) -> f64
+where
+    F: Fn(usize) -> f64 + Sync,
+{
+    let block_sums: Vec<f64> = (0..n.div_ceil(REDUCE_BLOCK))
+        .into_par_iter()
+        .map(|b| {
+            let end = ((b + 1) * REDUCE_BLOCK).min(n);
+            (b * REDUCE_BLOCK..end).map(&term).sum::<f64>()
+        })
+        .collect();
+    block_sums.iter().sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn same_bits_for_one_and_two_threads() {
+        let term = |i: usize| 1.0 / (i as f64 + 0.37);
+        let n = 100_003;
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap()
+            .install(|| deterministic_sum(n, term));
+        let two = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap()
+            .install(|| deterministic_sum(n, term));
+        assert_eq!(one.to_bits(), two.to_bits());
+        let serial: f64 = (0..n).map(term).sum();
+        assert!((one - serial).abs() < 1e-9 * serial);
+    }
+}

@@ -1,0 +1,225 @@
+//! The `inspect` report: what a mesh file holds and whether it is fit for smoothing.
+
+use crate::analysis::{voxel_size, AxisSpacing, VoxelSizeEstimate};
+use crate::io::{LoadedMesh, SourceFormat};
+use crate::mesh::geometry::{area, bounding_box, signed_volume, BoundingBox};
+use crate::mesh::Topology;
+use crate::metrics::average_normal_curvature;
+use serde::Serialize;
+use std::fmt::Write;
+use std::path::Path;
+
+/// Boundary loops listed individually; the count is always complete.
+const MAX_LISTED_LOOPS: usize = 100;
+
+/// One boundary loop in the report.
+#[derive(Debug, Clone, Serialize)]
+pub struct LoopSummary {
+    pub n_vertices: usize,
+    /// Loop length in mm.
+    pub length_mm: f64,
+    /// False when the rim runs into a non-manifold vertex and cannot be closed.
+    pub closed: bool,
+}
+
+/// Everything `destair inspect` reports about one mesh.
+#[derive(Debug, Clone, Serialize)]
+pub struct InspectReport {
+    pub path: String,
+    pub format: SourceFormat,
+    pub n_vertices: usize,
+    pub n_triangles: usize,
+    pub n_edges: usize,
+    pub bounding_box: Option<BoundingBox>,
+    /// Surface area in mm².
+    pub area_mm2: f64,
+    /// Signed enclosed volume in mm³ (meaningful only for closed meshes; negative = inward normals).
+    pub volume_mm3: f64,
+    /// Closed, 2-manifold and consistently oriented.
+    pub closed_oriented_manifold: bool,
+    pub n_boundary_loops: usize,
+    pub boundary_loops: Vec<LoopSummary>,
+    pub n_non_manifold_edges: usize,
+    pub n_non_manifold_vertices: usize,
+    /// Edges whose two triangles disagree on orientation.
+    pub n_inconsistent_edges: usize,
+    pub n_components: usize,
+    pub euler_characteristic: i64,
+    pub n_unreferenced_vertices: usize,
+    pub n_degenerate_triangles: usize,
+    /// Mean over vertices of the largest angle between vertex and incident face normals (degrees).
+    pub average_normal_curvature_deg: f64,
+    /// Grid spacing reconstructed from edge offsets (Bade 2007, §3.2).
+    pub voxel_size: VoxelSizeEstimate,
+    pub comments: Vec<String>,
+    pub warnings: Vec<String>,
+}
+
+/// Builds the inspect report for a loaded mesh.
+pub fn inspect(path: &Path, loaded: &LoadedMesh) -> InspectReport {
+    let mesh = &loaded.mesh;
+    let topology = Topology::build(mesh);
+    let p = mesh.positions();
+    let loops = topology.boundary_loops();
+    let boundary_loops = loops
+        .iter()
+        .take(MAX_LISTED_LOOPS)
+        .map(|l| {
+            let n = l.vertices.len();
+            let segments = if l.closed { n } else { n.saturating_sub(1) };
+            let length_mm = (0..segments)
+                .map(|i| {
+                    let (a, b) = (
+                        p[l.vertices[i] as usize],
+                        p[l.vertices[(i + 1) % n] as usize],
+                    );
+                    (0..3)
+                        .map(|k| (a[k] as f64 - b[k] as f64).powi(2))
+                        .sum::<f64>()
+                        .sqrt()
+                })
+                .sum();
+            LoopSummary {
+                n_vertices: n,
+                length_mm,
+                closed: l.closed,
+            }
+        })
+        .collect();
+    InspectReport {
+        path: path.display().to_string(),
+        format: loaded.format,
+        n_vertices: mesh.n_vertices(),
+        n_triangles: mesh.n_triangles(),
+        n_edges: topology.edges().len(),
+        bounding_box: bounding_box(mesh),
+        area_mm2: area(mesh),
+        volume_mm3: signed_volume(mesh),
+        closed_oriented_manifold: topology.is_closed_oriented_manifold(),
+        n_boundary_loops: loops.len(),
+        boundary_loops,
+        n_non_manifold_edges: topology.non_manifold_edges().len(),
+        n_non_manifold_vertices: topology.non_manifold_vertices().len(),
+        n_inconsistent_edges: topology.inconsistent_edges().len(),
+        n_components: topology.n_components(),
+        euler_characteristic: topology.euler_characteristic(),
+        n_unreferenced_vertices: topology.unreferenced_vertices().len(),
+        n_degenerate_triangles: topology.degenerate_triangles().len(),
+        average_normal_curvature_deg: average_normal_curvature(mesh, &topology),
+        voxel_size: voxel_size(mesh, &topology),
+        comments: loaded.meta.comments.clone(),
+        warnings: loaded.warnings.clone(),
+    }
+}
+
+impl InspectReport {
+    /// The report as human-readable text.
+    pub fn to_text(&self) -> String {
+        let mut s = String::new();
+        let _ = writeln!(s, "{} ({})", self.path, self.format);
+        let _ = writeln!(
+            s,
+            "  vertices {}  triangles {}  edges {}",
+            self.n_vertices, self.n_triangles, self.n_edges
+        );
+        if let Some(b) = &self.bounding_box {
+            let e = b.extent();
+            let _ = writeln!(
+                s,
+                "  bounding box  min ({:.3}, {:.3}, {:.3})  max ({:.3}, {:.3}, {:.3})  size {:.3} x {:.3} x {:.3} mm",
+                b.min[0], b.min[1], b.min[2], b.max[0], b.max[1], b.max[2], e[0], e[1], e[2]
+            );
+        }
+        let _ = writeln!(s, "  area {:.3} mm²", self.area_mm2);
+        let closed_note = if self.n_boundary_loops > 0 {
+            " (open mesh: depends on how the holes are closed)"
+        } else if self.volume_mm3 < 0.0 {
+            " (negative: normals point inward)"
+        } else {
+            ""
+        };
+        let _ = writeln!(s, "  volume {:.3} mm³{closed_note}", self.volume_mm3);
+        let _ = writeln!(
+            s,
+            "  components {}  Euler characteristic {}  closed oriented 2-manifold: {}",
+            self.n_components,
+            self.euler_characteristic,
+            if self.closed_oriented_manifold {
+                "yes"
+            } else {
+                "no"
+            }
+        );
+        let _ = writeln!(s, "  boundary loops {}", self.n_boundary_loops);
+        for l in &self.boundary_loops {
+            let _ = writeln!(
+                s,
+                "    {} vertices, {:.3} mm{}",
+                l.n_vertices,
+                l.length_mm,
+                if l.closed { "" } else { " (open chain)" }
+            );
+        }
+        if self.n_boundary_loops > self.boundary_loops.len() {
+            let _ = writeln!(
+                s,
+                "    ... {} more",
+                self.n_boundary_loops - self.boundary_loops.len()
+            );
+        }
+        let findings = [
+            (self.n_non_manifold_edges, "non-manifold edges"),
+            (self.n_non_manifold_vertices, "non-manifold vertices"),
+            (
+                self.n_inconsistent_edges,
+                "edges with inconsistent orientation",
+            ),
+            (self.n_unreferenced_vertices, "unreferenced vertices (kept)"),
+            (
+                self.n_degenerate_triangles,
+                "degenerate triangles (repeated vertex)",
+            ),
+        ];
+        for (n, what) in findings {
+            if n > 0 {
+                let _ = writeln!(s, "  {n} {what}");
+            }
+        }
+        let _ = writeln!(
+            s,
+            "  average normal curvature {:.3} degrees",
+            self.average_normal_curvature_deg
+        );
+        let _ = writeln!(s, "  voxel size {}", describe_voxel_size(&self.voxel_size));
+        for c in &self.comments {
+            let _ = writeln!(s, "  comment: {c}");
+        }
+        for w in &self.warnings {
+            let _ = writeln!(s, "  warning: {w}");
+        }
+        s
+    }
+}
+
+fn describe_voxel_size(v: &VoxelSizeEstimate) -> String {
+    if let Some([x, y, z]) = v.spacing() {
+        return format!("{x:.4} x {y:.4} x {z:.4} mm");
+    }
+    let axis = |a: &AxisSpacing| match a {
+        AxisSpacing::Spacing { mm } => format!("{mm:.4} mm"),
+        AxisSpacing::OneStep { mm } => format!("{mm:.4} or {:.4} mm (ambiguous)", 2.0 * mm),
+        AxisSpacing::NoSteps => "none (flat)".into(),
+        AxisSpacing::Irregular { .. } => "irregular".into(),
+    };
+    let detail = format!(
+        "x {}, y {}, z {}",
+        axis(&v.axes[0]),
+        axis(&v.axes[1]),
+        axis(&v.axes[2])
+    );
+    if v.is_irregular() {
+        format!("not reconstructable: the mesh is not a marching-cubes surface on an axis-aligned grid ({detail})")
+    } else {
+        format!("partly reconstructable: {detail}")
+    }
+}

@@ -1,0 +1,101 @@
+//! End-to-end tests of the `destair` binary.
+
+mod common;
+
+use std::process::Command;
+
+fn destair(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_destair"))
+        .args(args)
+        .output()
+        .expect("run destair")
+}
+
+#[test]
+fn inspect_text_and_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("octa.ply");
+    let mesh = common::reference_mesh();
+    let meta = destair::io::MeshMeta {
+        comments: vec!["SPACE=LPS".into()],
+        obj_info: vec![],
+    };
+    destair::io::ply::write_ply(&path, &mesh, &meta, &[]).unwrap();
+    let p = path.to_str().unwrap();
+
+    let out = destair(&["inspect", p]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("vertices 7  triangles 8  edges 12"), "{text}");
+    assert!(text.contains("1 unreferenced vertices"), "{text}");
+    assert!(text.contains("comment: SPACE=LPS"), "{text}");
+
+    let out = destair(&["inspect", p, "--json", "--read-mode", "read"]);
+    assert!(out.status.success());
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["n_vertices"], 7);
+    assert_eq!(json["n_triangles"], 8);
+    assert_eq!(json["n_components"], 1);
+    assert_eq!(json["euler_characteristic"], 2);
+    assert_eq!(json["closed_oriented_manifold"], true);
+    assert_eq!(json["format"], "ply_binary_little_endian");
+    assert!(json["volume_mm3"].as_f64().unwrap() > 0.0);
+}
+
+#[test]
+fn bad_input_exits_3_and_names_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("broken.stl");
+    std::fs::write(&path, vec![7u8; 200]).unwrap();
+    let out = destair(&["inspect", path.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(3));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("broken.stl") && err.contains("declares"),
+        "{err}"
+    );
+
+    let out = destair(&["inspect", dir.path().join("missing.ply").to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(3));
+}
+
+#[test]
+fn usage_errors_exit_2() {
+    assert_eq!(destair(&["frobnicate"]).status.code(), Some(2));
+    assert_eq!(destair(&["inspect"]).status.code(), Some(2));
+    assert_eq!(
+        destair(&["--threads", "0", "inspect", "x.ply"])
+            .status
+            .code(),
+        Some(2)
+    );
+}
+
+#[test]
+fn bench_io_runs_small() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = destair(&[
+        "bench",
+        "io",
+        "--triangles",
+        "20000",
+        "--repeat",
+        "1",
+        "--json",
+        "--dir",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let n = json["n_triangles"].as_u64().unwrap();
+    assert!((19_000..=21_000).contains(&n), "{n}");
+    assert!(json["read_mmap_s"].as_f64().unwrap() > 0.0);
+}
