@@ -4,6 +4,7 @@
 //! throughput that is not disturbed by other work on the machine.
 
 use crate::io::ply::write_ply;
+use crate::io::stl::write_stl;
 use crate::io::{read_mesh, MeshMeta, ReadMode, ReadOptions};
 use crate::mesh::{Mesh, Topology};
 use serde::Serialize;
@@ -66,12 +67,15 @@ pub struct IoBench {
     pub read_mmap_s: f64,
     pub read_plain_s: f64,
     pub topology_s: f64,
+    pub stl_file_bytes: u64,
+    pub stl_write_s: f64,
+    pub stl_read_s: f64,
     pub write_mb_per_s: f64,
     pub read_mmap_mb_per_s: f64,
 }
 
 /// Generates a torus of about `triangles` triangles, writes it as binary PLY in `dir`, then
-/// times write, read+validate (mmap and plain read) and topology build.
+/// times write, read+validate (mmap and plain read) and topology build, then STL write and read.
 pub fn io(dir: &Path, triangles: usize, shuffle: bool, repeat: usize) -> anyhow::Result<IoBench> {
     // Rings about 2.5 x segments keeps the quads near square on a 60/20 mm torus.
     let segments = ((triangles as f64 / 5.0).sqrt().round() as usize).max(3);
@@ -99,6 +103,13 @@ pub fn io(dir: &Path, triangles: usize, shuffle: bool, repeat: usize) -> anyhow:
     let (topology_s, topology) = best_of(repeat, || Topology::build(&mesh));
     anyhow::ensure!(topology.is_closed_oriented_manifold() && topology.euler_characteristic() == 0);
     std::fs::remove_file(&path)?;
+    let stl = dir.join("bench-io.stl");
+    let (stl_write_s, written) = best_of(repeat, || write_stl(&stl, &mesh, &meta));
+    written?;
+    let stl_file_bytes = std::fs::metadata(&stl)?.len();
+    let (stl_read_s, loaded) = best_of(repeat, || read_mesh(&stl, &ReadOptions::default()));
+    anyhow::ensure!(loaded?.mesh.n_triangles() == mesh.n_triangles());
+    std::fs::remove_file(&stl)?;
     let mb = file_bytes as f64 / 1e6;
     Ok(IoBench {
         n_vertices: mesh.n_vertices(),
@@ -110,6 +121,9 @@ pub fn io(dir: &Path, triangles: usize, shuffle: bool, repeat: usize) -> anyhow:
         read_mmap_s,
         read_plain_s,
         topology_s,
+        stl_file_bytes,
+        stl_write_s,
+        stl_read_s,
         write_mb_per_s: mb / write_s,
         read_mmap_mb_per_s: mb / read_mmap_s,
     })

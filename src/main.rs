@@ -173,6 +173,12 @@ fn run(command: Command) -> anyhow::Result<()> {
                     r.write_s, r.write_mb_per_s
                 );
                 println!("  topology build        {:.4} s", r.topology_s);
+                println!(
+                    "  STL ({:.1} MB) write  {:.4} s, read+weld {:.4} s",
+                    r.stl_file_bytes as f64 / 1e6,
+                    r.stl_write_s,
+                    r.stl_read_s
+                );
             }
         }
     }

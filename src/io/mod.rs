@@ -238,6 +238,44 @@ pub enum WriteError {
     InvalidProperty { name: String, message: String },
 }
 
+/// Rows encoded per batch by [`write_rows`]; bounds the writer's buffer to a few MB.
+const WRITE_BATCH_ROWS: usize = 1 << 18;
+/// Rows per parallel task within a batch.
+const WRITE_TASK_ROWS: usize = 1 << 12;
+
+/// Writes `n_rows` fixed-size binary rows: each batch is encoded in parallel into one reusable
+/// buffer by `encode(row_index, row_bytes)` and then written, so memory stays bounded and the
+/// bytes do not depend on the thread count.
+pub(crate) fn write_rows<F>(
+    w: &mut dyn std::io::Write,
+    n_rows: usize,
+    row_size: usize,
+    encode: F,
+) -> std::io::Result<()>
+where
+    F: Fn(usize, &mut [u8]) + Sync,
+{
+    use rayon::prelude::*;
+    let mut buf = vec![0u8; WRITE_BATCH_ROWS.min(n_rows) * row_size];
+    let mut start = 0;
+    while start < n_rows {
+        let n = WRITE_BATCH_ROWS.min(n_rows - start);
+        let batch = &mut buf[..n * row_size];
+        batch
+            .par_chunks_mut(WRITE_TASK_ROWS * row_size)
+            .enumerate()
+            .for_each(|(task, part)| {
+                let first = start + task * WRITE_TASK_ROWS;
+                for (i, row) in part.chunks_exact_mut(row_size).enumerate() {
+                    encode(first + i, row);
+                }
+            });
+        w.write_all(batch)?;
+        start += n;
+    }
+    Ok(())
+}
+
 /// Counts of polygons fanned and faces dropped, turned into load warnings at the end.
 #[derive(Debug, Default)]
 pub(crate) struct FaceStats {

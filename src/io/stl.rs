@@ -5,13 +5,13 @@
 
 use crate::io::text::{parse_f64, show, TextCursor};
 use crate::io::{
-    write_atomically, DecodeResult, FaceStats, LoadedMesh, MeshMeta, ReadErrorKind, SourceFormat,
-    WriteError,
+    write_atomically, write_rows, DecodeResult, FaceStats, LoadedMesh, MeshMeta, ReadErrorKind,
+    SourceFormat, WriteError,
 };
 use crate::mesh::geometry::{normalize, triangle_area_vector};
 use crate::mesh::{check_size, Mesh};
-use rayon::prelude::*;
-use std::collections::HashMap;
+use rustc_hash::FxHashMap;
+use std::io::Write;
 use std::path::Path;
 
 const HEADER: usize = 80;
@@ -71,14 +71,14 @@ pub(crate) fn decode(bytes: &[u8]) -> DecodeResult {
 
 /// Welds corners with bit-identical coordinates (+0 and -0 taken as equal) into vertices.
 struct Welder {
-    index: HashMap<[u32; 3], u32>,
+    index: FxHashMap<[u32; 3], u32>,
     positions: Vec<[f32; 3]>,
 }
 
 impl Welder {
     fn with_capacity(n: usize) -> Self {
         Self {
-            index: HashMap::with_capacity(n),
+            index: FxHashMap::with_capacity_and_hasher(n, Default::default()),
             positions: Vec::with_capacity(n),
         }
     }
@@ -260,38 +260,42 @@ fn decode_ascii(bytes: &[u8]) -> DecodeResult {
 
 /// Writes `mesh` as binary STL, atomically.
 pub fn write_stl(path: &Path, mesh: &Mesh, meta: &MeshMeta) -> Result<(), WriteError> {
-    let bytes = encode_stl(mesh, meta);
-    write_atomically(path, |w| w.write_all(&bytes)).map_err(|source| WriteError::Io {
+    write_atomically(path, |w| write_stl_to(w, mesh, meta)).map_err(|source| WriteError::Io {
         path: path.to_path_buf(),
         source,
     })
 }
 
-/// Encodes binary STL. The 80-byte header starts with "destair" (never "solid", which makes
-/// readers misdetect ASCII) and carries the `SPACE=` tag when the mesh has one.
+/// Encodes binary STL in memory (see [`write_stl`]).
 pub fn encode_stl(mesh: &Mesh, meta: &MeshMeta) -> Vec<u8> {
-    let mut header = String::from("destair binary STL");
-    if let Some(space) = meta.space() {
-        header.push_str(" SPACE=");
-        header.push_str(space);
-    }
-    let n = mesh.n_triangles();
-    let mut out = vec![0u8; HEADER + 4 + RECORD * n];
-    let h = header.as_bytes();
-    out[..h.len().min(HEADER)].copy_from_slice(&h[..h.len().min(HEADER)]);
-    out[HEADER..HEADER + 4].copy_from_slice(&(n as u32).to_le_bytes());
-    let p = mesh.positions();
-    out[HEADER + 4..]
-        .par_chunks_mut(RECORD)
-        .zip(mesh.triangles().par_iter())
-        .for_each(|(record, &t)| {
-            let normal = normalize(triangle_area_vector(mesh, t));
-            let values = normal
-                .iter()
-                .chain(t.iter().flat_map(|&v| p[v as usize].iter()));
-            for (slot, v) in record.chunks_exact_mut(4).zip(values) {
-                slot.copy_from_slice(&v.to_le_bytes());
-            }
-        });
+    let mut out = Vec::new();
+    write_stl_to(&mut out, mesh, meta).expect("writing to a Vec cannot fail");
     out
+}
+
+/// Streams binary STL. The 80-byte header starts with "destair" (never "solid", which makes
+/// readers misdetect ASCII) and carries the `SPACE=` tag when the mesh has one.
+fn write_stl_to(w: &mut dyn Write, mesh: &Mesh, meta: &MeshMeta) -> std::io::Result<()> {
+    let mut text = String::from("destair binary STL");
+    if let Some(space) = meta.space() {
+        text.push_str(" SPACE=");
+        text.push_str(space);
+    }
+    let mut header = [0u8; HEADER + 4];
+    let n = text.len().min(HEADER);
+    header[..n].copy_from_slice(&text.as_bytes()[..n]);
+    header[HEADER..].copy_from_slice(&(mesh.n_triangles() as u32).to_le_bytes());
+    w.write_all(&header)?;
+    let p = mesh.positions();
+    let triangles = mesh.triangles();
+    write_rows(w, triangles.len(), RECORD, |f, record| {
+        let t = triangles[f];
+        let normal = normalize(triangle_area_vector(mesh, t));
+        let values = normal
+            .iter()
+            .chain(t.iter().flat_map(|&v| p[v as usize].iter()));
+        for (slot, v) in record.chunks_exact_mut(4).zip(values) {
+            slot.copy_from_slice(&v.to_le_bytes());
+        }
+    })
 }

@@ -3,13 +3,10 @@
 //! per-vertex scalars (weights, displacements) go out as float properties so ParaView and
 //! MeshLab can colour by them. Header comments and obj_info are written back.
 
-use crate::io::{write_atomically, MeshMeta, WriteError};
+use crate::io::{write_atomically, write_rows, MeshMeta, WriteError};
 use crate::mesh::Mesh;
-use rayon::prelude::*;
+use std::io::Write;
 use std::path::Path;
-
-/// Rows per parallel encoding chunk.
-const ROWS_PER_CHUNK: usize = 1 << 14;
 
 /// Writes `mesh` as binary little-endian PLY, atomically.
 pub fn write_ply(
@@ -18,10 +15,12 @@ pub fn write_ply(
     meta: &MeshMeta,
     vertex_properties: &[(&str, &[f32])],
 ) -> Result<(), WriteError> {
-    let bytes = encode_ply(mesh, meta, vertex_properties)?;
-    write_atomically(path, |w| w.write_all(&bytes)).map_err(|source| WriteError::Io {
-        path: path.to_path_buf(),
-        source,
+    check_properties(mesh, vertex_properties)?;
+    write_atomically(path, |w| write_ply_to(w, mesh, meta, vertex_properties)).map_err(|source| {
+        WriteError::Io {
+            path: path.to_path_buf(),
+            source,
+        }
     })
 }
 
@@ -32,6 +31,18 @@ pub fn encode_ply(
     vertex_properties: &[(&str, &[f32])],
 ) -> Result<Vec<u8>, WriteError> {
     check_properties(mesh, vertex_properties)?;
+    let mut out = Vec::new();
+    write_ply_to(&mut out, mesh, meta, vertex_properties).expect("writing to a Vec cannot fail");
+    Ok(out)
+}
+
+/// Streams the PLY file; properties must have passed `check_properties`.
+fn write_ply_to(
+    w: &mut dyn Write,
+    mesh: &Mesh,
+    meta: &MeshMeta,
+    vertex_properties: &[(&str, &[f32])],
+) -> std::io::Result<()> {
     let mut header = String::from("ply\nformat binary_little_endian 1.0\n");
     for c in &meta.comments {
         header.push_str(&format!("comment {}\n", one_line(c)));
@@ -56,44 +67,28 @@ pub fn encode_ply(
         "element face {}\nproperty list uchar {index_type} vertex_indices\nend_header\n",
         mesh.n_triangles()
     ));
-
-    let vertex_row = 12 + 4 * vertex_properties.len();
-    let face_row = 13;
-    let n_v = mesh.n_vertices();
-    let n_f = mesh.n_triangles();
-    let body = header.len() + vertex_row * n_v + face_row * n_f;
-    let mut out = vec![0u8; body];
-    out[..header.len()].copy_from_slice(header.as_bytes());
-    let (vertex_bytes, face_bytes) = out[header.len()..].split_at_mut(vertex_row * n_v);
+    w.write_all(header.as_bytes())?;
     let positions = mesh.positions();
-    vertex_bytes
-        .par_chunks_mut(vertex_row * ROWS_PER_CHUNK)
-        .enumerate()
-        .for_each(|(c, chunk)| {
-            for (i, row) in chunk.chunks_exact_mut(vertex_row).enumerate() {
-                let v = c * ROWS_PER_CHUNK + i;
-                for k in 0..3 {
-                    row[4 * k..4 * k + 4].copy_from_slice(&positions[v][k].to_le_bytes());
-                }
-                for (j, (_, values)) in vertex_properties.iter().enumerate() {
-                    row[12 + 4 * j..16 + 4 * j].copy_from_slice(&values[v].to_le_bytes());
-                }
+    write_rows(
+        w,
+        mesh.n_vertices(),
+        12 + 4 * vertex_properties.len(),
+        |v, row| {
+            for k in 0..3 {
+                row[4 * k..4 * k + 4].copy_from_slice(&positions[v][k].to_le_bytes());
             }
-        });
+            for (j, (_, values)) in vertex_properties.iter().enumerate() {
+                row[12 + 4 * j..16 + 4 * j].copy_from_slice(&values[v].to_le_bytes());
+            }
+        },
+    )?;
     let triangles = mesh.triangles();
-    face_bytes
-        .par_chunks_mut(face_row * ROWS_PER_CHUNK)
-        .enumerate()
-        .for_each(|(c, chunk)| {
-            for (i, row) in chunk.chunks_exact_mut(face_row).enumerate() {
-                let t = triangles[c * ROWS_PER_CHUNK + i];
-                row[0] = 3;
-                for k in 0..3 {
-                    row[1 + 4 * k..5 + 4 * k].copy_from_slice(&t[k].to_le_bytes());
-                }
-            }
-        });
-    Ok(out)
+    write_rows(w, mesh.n_triangles(), 13, |f, row| {
+        row[0] = 3;
+        for k in 0..3 {
+            row[1 + 4 * k..5 + 4 * k].copy_from_slice(&triangles[f][k].to_le_bytes());
+        }
+    })
 }
 
 fn one_line(s: &str) -> String {
