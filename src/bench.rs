@@ -11,26 +11,37 @@ use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
 
-/// A closed torus of `rings` x `segments` quads split into triangles (2 x rings x segments
-/// triangles), radii 60 and 20 mm. With `shuffle_seed` the vertex numbering is permuted,
-/// which removes the memory locality marching-cubes output has and shows the worst case.
-pub fn torus(rings: usize, segments: usize, shuffle_seed: Option<u64>) -> Mesh {
-    let n = rings * segments;
-    let mut order: Vec<u32> = (0..n as u32).collect();
-    if let Some(seed) = shuffle_seed {
-        fastrand::Rng::with_seed(seed).shuffle(&mut order);
+/// The same mesh with its vertices renumbered by a seeded permutation: this removes the
+/// memory locality that marching-cubes output has and shows the worst case.
+pub fn shuffled(mesh: &Mesh, seed: u64) -> Mesh {
+    let mut order: Vec<u32> = (0..mesh.n_vertices() as u32).collect();
+    fastrand::Rng::with_seed(seed).shuffle(&mut order);
+    let mut positions = vec![[0.0f32; 3]; mesh.n_vertices()];
+    for (v, &p) in mesh.positions().iter().enumerate() {
+        positions[order[v] as usize] = p;
     }
+    let triangles = mesh
+        .triangles()
+        .iter()
+        .map(|t| t.map(|v| order[v as usize]))
+        .collect();
+    Mesh::from_checked_parts(positions, triangles)
+}
+
+/// A closed torus of `rings` x `segments` quads split into triangles (2 x rings x segments
+/// triangles), radii 60 and 20 mm.
+pub fn torus(rings: usize, segments: usize) -> Mesh {
+    let n = rings * segments;
     let mut positions = vec![[0.0f32; 3]; n];
     for i in 0..rings {
         let u = i as f32 / rings as f32 * std::f32::consts::TAU;
         for j in 0..segments {
             let v = j as f32 / segments as f32 * std::f32::consts::TAU;
             let r = 60.0 + 20.0 * v.cos();
-            positions[order[i * segments + j] as usize] =
-                [r * u.cos(), r * u.sin(), 20.0 * v.sin()];
+            positions[i * segments + j] = [r * u.cos(), r * u.sin(), 20.0 * v.sin()];
         }
     }
-    let id = |i: usize, j: usize| order[(i % rings) * segments + (j % segments)];
+    let id = |i: usize, j: usize| ((i % rings) * segments + (j % segments)) as u32;
     let mut triangles = Vec::with_capacity(2 * n);
     for i in 0..rings {
         for j in 0..segments {
@@ -58,6 +69,7 @@ pub fn best_of<T>(repeat: usize, mut f: impl FnMut() -> T) -> (f64, T) {
 /// Results of `destair bench io`.
 #[derive(Debug, Serialize)]
 pub struct IoBench {
+    pub mesh: BenchMesh,
     pub n_vertices: usize,
     pub n_triangles: usize,
     pub shuffled: bool,
@@ -74,13 +86,42 @@ pub struct IoBench {
     pub read_mmap_mb_per_s: f64,
 }
 
-/// Generates a torus of about `triangles` triangles, writes it as binary PLY in `dir`, then
+/// Which generated mesh a benchmark runs on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BenchMesh {
+    /// A closed torus grid (generated instantly; perfectly regular).
+    Torus,
+    /// The `big` phantom: a marching-cubes blob with staircases, like real input.
+    Phantom,
+}
+
+/// Generates a mesh of about `triangles` triangles, writes it as binary PLY in `dir`, then
 /// times write, read+validate (mmap and plain read) and topology build, then STL write and read.
-pub fn io(dir: &Path, triangles: usize, shuffle: bool, repeat: usize) -> anyhow::Result<IoBench> {
-    // Rings about 2.5 x segments keeps the quads near square on a 60/20 mm torus.
-    let segments = ((triangles as f64 / 5.0).sqrt().round() as usize).max(3);
-    let rings = (triangles / 2).div_ceil(segments).max(3);
-    let mesh = torus(rings, segments, shuffle.then_some(7));
+pub fn io(
+    dir: &Path,
+    triangles: usize,
+    kind: BenchMesh,
+    shuffle: bool,
+    repeat: usize,
+) -> anyhow::Result<IoBench> {
+    let mesh = match kind {
+        BenchMesh::Torus => {
+            // Rings about 2.5 x segments keeps the quads near square on a 60/20 mm torus.
+            let segments = ((triangles as f64 / 5.0).sqrt().round() as usize).max(3);
+            let rings = (triangles / 2).div_ceil(segments).max(3);
+            torus(rings, segments)
+        }
+        BenchMesh::Phantom => {
+            let case = crate::phantom::big_case(triangles as u64, &Default::default());
+            case.meshes
+                .into_iter()
+                .next()
+                .map(|(_, m)| m)
+                .unwrap_or_default()
+        }
+    };
+    let mesh = if shuffle { shuffled(&mesh, 7) } else { mesh };
     let path = dir.join("bench-io.ply");
     let meta = MeshMeta::default();
     let (write_s, written) = best_of(repeat, || write_ply(&path, &mesh, &meta, &[]));
@@ -101,7 +142,10 @@ pub fn io(dir: &Path, triangles: usize, shuffle: bool, repeat: usize) -> anyhow:
     );
     let (read_plain_s, _) = read(ReadMode::Read);
     let (topology_s, topology) = best_of(repeat, || Topology::build(&mesh));
-    anyhow::ensure!(topology.is_closed_oriented_manifold() && topology.euler_characteristic() == 0);
+    anyhow::ensure!(
+        topology.is_closed_oriented_manifold(),
+        "bench mesh is not a closed manifold"
+    );
     std::fs::remove_file(&path)?;
     let stl = dir.join("bench-io.stl");
     let (stl_write_s, written) = best_of(repeat, || write_stl(&stl, &mesh, &meta));
@@ -112,6 +156,7 @@ pub fn io(dir: &Path, triangles: usize, shuffle: bool, repeat: usize) -> anyhow:
     std::fs::remove_file(&stl)?;
     let mb = file_bytes as f64 / 1e6;
     Ok(IoBench {
+        mesh: kind,
         n_vertices: mesh.n_vertices(),
         n_triangles: mesh.n_triangles(),
         shuffled: shuffle,

@@ -8,6 +8,7 @@ pub mod io;
 pub mod mesh;
 pub mod metrics;
 pub mod parallel;
+pub mod phantom;
 pub mod report;
 
 pub use mesh::{Mesh, Topology};

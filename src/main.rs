@@ -36,6 +36,34 @@ enum Command {
         #[arg(long, value_enum, default_value_t = ModeArg::Mmap)]
         read_mode: ModeArg,
     },
+    /// Generate phantom cases: marching-cubes meshes of analytic shapes with real staircases.
+    ///
+    /// NAME is one of sphere-iso, sphere-aniso, sphere-aniso-1-16, -1-8, -1-4, -1-2, -top,
+    /// cap-cylinder, neck, aneurysm; `big N` (about N triangles); or `cohort` (--cases N).
+    Phantom {
+        /// Which phantom.
+        name: String,
+        /// Triangle count for `big`.
+        size: Option<u64>,
+        /// Output folder (one PLY per structure plus phantom.json; for `cohort` one folder per case).
+        #[arg(long)]
+        out: PathBuf,
+        /// Rotate the meshes about the volume centre around x (degrees).
+        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+        rotate_x: f64,
+        /// Then around y (degrees).
+        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+        rotate_y: f64,
+        /// Seed for the sub-voxel placement of the shapes.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// Leave structures open where they leave the volume (default: flat caps).
+        #[arg(long)]
+        open_ends: bool,
+        /// Number of cases for `cohort`.
+        #[arg(long, default_value_t = 6)]
+        cases: usize,
+    },
     /// Measure destair's throughput on generated meshes.
     Bench {
         #[command(subcommand)]
@@ -53,6 +81,9 @@ enum BenchCommand {
         /// Folder for the temporary PLY file (default: the system temp folder).
         #[arg(long)]
         dir: Option<PathBuf>,
+        /// Mesh to run on: the `big` phantom (marching-cubes blob) or a regular torus.
+        #[arg(long, value_enum, default_value_t = MeshArg::Phantom)]
+        mesh: MeshArg,
         /// Permute vertex numbering (worst-case memory locality).
         #[arg(long)]
         shuffle: bool,
@@ -66,10 +97,21 @@ enum BenchCommand {
 }
 
 #[derive(Clone, Copy, ValueEnum)]
+enum MeshArg {
+    Phantom,
+    Torus,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
 enum ModeArg {
     Mmap,
     Read,
 }
+
+/// A command line that names something that does not exist (exit 2).
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+struct UsageError(String);
 
 /// Errors in the input data (exit 3) as opposed to internal failures (exit 1).
 #[derive(Debug, thiserror::Error)]
@@ -86,7 +128,9 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e:#}");
-            if e.downcast_ref::<InputError>().is_some() {
+            if e.downcast_ref::<UsageError>().is_some() {
+                ExitCode::from(2)
+            } else if e.downcast_ref::<InputError>().is_some() {
                 ExitCode::from(3)
             } else {
                 ExitCode::from(1)
@@ -140,23 +184,92 @@ fn run(command: Command) -> anyhow::Result<()> {
                 print!("{}", report.to_text());
             }
         }
+        Command::Phantom {
+            name,
+            size,
+            out,
+            rotate_x,
+            rotate_y,
+            seed,
+            open_ends,
+            cases,
+        } => {
+            use destair::phantom::{
+                big_case, cohort_case, named_case, write_case, BorderEnds, PhantomOptions,
+            };
+            let options = PhantomOptions {
+                rotate_x_deg: rotate_x,
+                rotate_y_deg: rotate_y,
+                seed,
+                ends: if open_ends {
+                    BorderEnds::Open
+                } else {
+                    BorderEnds::Capped
+                },
+            };
+            if !["big", "cohort"].contains(&name.as_str())
+                && !destair::phantom::cases::CASE_NAMES.contains(&name.as_str())
+            {
+                return Err(UsageError(
+                    destair::phantom::cases::PhantomError::UnknownName(name).to_string(),
+                )
+                .into());
+            }
+            let started = std::time::Instant::now();
+            let written: Vec<_> = match name.as_str() {
+                "cohort" => (0..cases)
+                    .map(|i| {
+                        let case = cohort_case(i, seed);
+                        let dir = out.join(&case.info.name);
+                        write_case(&case, &dir).map(|()| (case, dir))
+                    })
+                    .collect::<Result<_, _>>()?,
+                "big" => {
+                    let case = big_case(size.unwrap_or(1_000_000), &options);
+                    write_case(&case, &out)?;
+                    vec![(case, out.clone())]
+                }
+                _ => {
+                    let case = named_case(&name, &options)?;
+                    write_case(&case, &out)?;
+                    vec![(case, out.clone())]
+                }
+            };
+            for (case, dir) in &written {
+                for s in &case.info.structures {
+                    println!(
+                        "{}: {} vertices, {} triangles",
+                        dir.join(format!("{}.ply", s.name)).display(),
+                        s.n_vertices,
+                        s.n_triangles
+                    );
+                }
+            }
+            eprintln!("generated in {:.2} s", started.elapsed().as_secs_f64());
+        }
         Command::Bench {
             what:
                 BenchCommand::Io {
                     triangles,
                     dir,
+                    mesh,
                     shuffle,
                     repeat,
                     json,
                 },
         } => {
             let dir = dir.unwrap_or_else(std::env::temp_dir);
-            let r = destair::bench::io(&dir, triangles, shuffle, repeat)?;
+            let kind = match mesh {
+                MeshArg::Phantom => destair::bench::BenchMesh::Phantom,
+                MeshArg::Torus => destair::bench::BenchMesh::Torus,
+            };
+            let r = destair::bench::io(&dir, triangles, kind, shuffle, repeat)?;
             if json {
                 println!("{}", serde_json::to_string_pretty(&r)?);
             } else {
                 println!(
-                    "bench io: {} vertices, {} triangles{}, binary PLY {:.1} MB, {} threads, best of {repeat}",
+                    "bench io: {:?} mesh, {} vertices, {} triangles{}, binary PLY {:.1} MB, {} threads, best of {repeat}",
+                    r.mesh,
                     r.n_vertices,
                     r.n_triangles,
                     if r.shuffled { " (shuffled numbering)" } else { "" },

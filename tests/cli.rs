@@ -99,3 +99,82 @@ fn bench_io_runs_small() {
     assert!((19_000..=21_000).contains(&n), "{n}");
     assert!(json["read_mmap_s"].as_f64().unwrap() > 0.0);
 }
+
+#[test]
+fn phantom_writes_meshes_and_description() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("neck");
+    let run = destair(&[
+        "phantom",
+        "neck",
+        "--out",
+        out.to_str().unwrap(),
+        "--seed",
+        "4",
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    for s in ["tumor", "vein", "trachea"] {
+        let report = destair(&[
+            "inspect",
+            out.join(format!("{s}.ply")).to_str().unwrap(),
+            "--json",
+        ]);
+        let json: serde_json::Value = serde_json::from_slice(&report.stdout).unwrap();
+        assert_eq!(json["closed_oriented_manifold"], true, "{s}");
+        assert_eq!(json["voxel_size"]["axes"][2]["mm"], 3.0, "{s}");
+    }
+    let info: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("phantom.json")).unwrap()).unwrap();
+    assert_eq!(info["seed"], 4);
+    assert_eq!(info["structures"].as_array().unwrap().len(), 3);
+
+    let rotated = dir.path().join("rotated");
+    let run = destair(&[
+        "phantom",
+        "sphere-aniso",
+        "--rotate-x",
+        "-30",
+        "--out",
+        rotated.to_str().unwrap(),
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let report = destair(&["inspect", rotated.join("sphere.ply").to_str().unwrap()]);
+    let text = String::from_utf8(report.stdout).unwrap();
+    assert!(
+        text.contains("not a marching-cubes surface on an axis-aligned grid"),
+        "{text}"
+    );
+
+    let cohort = dir.path().join("cohort");
+    let run = destair(&[
+        "phantom",
+        "cohort",
+        "--cases",
+        "3",
+        "--out",
+        cohort.to_str().unwrap(),
+    ]);
+    assert!(run.status.success());
+    let cases: Vec<_> = std::fs::read_dir(&cohort)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(cases.len(), 3);
+
+    let bad = destair(&[
+        "phantom",
+        "dodecahedron",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("unknown phantom"));
+}
