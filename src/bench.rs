@@ -173,3 +173,106 @@ pub fn io(
         read_mmap_mb_per_s: mb / read_mmap_s,
     })
 }
+
+/// One smoother's timing in `destair bench smooth`.
+#[derive(Debug, Serialize)]
+pub struct SmoothTiming {
+    pub method: &'static str,
+    /// Seconds for the given number of iterations (best run).
+    pub seconds: f64,
+    /// Vertices times iterations per second (a Taubin iteration is a lambda and a mu pass).
+    pub vertex_updates_per_s: f64,
+}
+
+/// Results of `destair bench smooth`.
+#[derive(Debug, Serialize)]
+pub struct SmoothBench {
+    pub n_vertices: usize,
+    pub n_triangles: usize,
+    pub iterations: usize,
+    pub threads: usize,
+    pub smoothers: Vec<SmoothTiming>,
+    /// Symmetric Hausdorff distance between the phantom and its Laplace-smoothed version,
+    /// including building both triangle grids (seconds).
+    pub hausdorff_s: f64,
+    /// Point-to-surface queries per second within that measurement.
+    pub hausdorff_queries_per_s: f64,
+}
+
+/// Times every smoother for `iterations` iterations on the `big` phantom of about
+/// `triangles` triangles (relaxations run the full count, without stopping early), then the
+/// Hausdorff distance between the phantom and its smoothed version.
+pub fn smooth(triangles: usize, iterations: usize, repeat: usize) -> SmoothBench {
+    use crate::smooth::{smooth, Method};
+    use crate::weights::VertexWeights;
+    let case = crate::phantom::big_case(triangles as u64, &Default::default());
+    let mesh = case
+        .meshes
+        .into_iter()
+        .next()
+        .map(|(_, m)| m)
+        .unwrap_or_default();
+    let topology = Topology::build(&mesh);
+    let weights = VertexWeights::uniform(mesh.n_vertices());
+    let fixed = vec![false; mesh.n_vertices()];
+    let voxel = case.info.spacing_mm.map(|x| x as f32);
+    // Threshold 0 never stops a relaxation early, so every method runs all iterations.
+    let methods = [
+        Method::Laplace { lambda: 0.5 },
+        Method::Taubin {
+            lambda: 0.5,
+            mu: -0.53,
+        },
+        Method::Hc {
+            lambda: 0.5,
+            alpha: 0.0,
+            beta: 0.5,
+        },
+        Method::Mcf { lambda: 0.5 },
+        Method::Npc { lambda: 0.5, voxel },
+        Method::CellSize {
+            lambda: 1.0,
+            voxel,
+            threshold: 0.0,
+        },
+        Method::CellEdge {
+            lambda: 1.0,
+            voxel,
+            threshold: 0.0,
+        },
+        Method::Diamond {
+            lambda: 1.0,
+            voxel,
+            threshold: 0.0,
+        },
+    ];
+    let mut smoothed = mesh.clone();
+    let smoothers = methods
+        .iter()
+        .map(|method| {
+            let (seconds, (positions, _)) = best_of(repeat, || {
+                smooth(&mesh, &topology, method, iterations, &weights, &fixed)
+            });
+            if method.name() == "laplace" {
+                smoothed.positions_mut().copy_from_slice(&positions);
+            }
+            SmoothTiming {
+                method: method.name(),
+                seconds,
+                vertex_updates_per_s: (mesh.n_vertices() * iterations) as f64 / seconds,
+            }
+        })
+        .collect();
+    let (hausdorff_s, _) = best_of(repeat, || {
+        crate::metrics::hausdorff_distance(&mesh, &smoothed)
+    });
+    SmoothBench {
+        n_vertices: mesh.n_vertices(),
+        n_triangles: mesh.n_triangles(),
+        iterations,
+        threads: rayon::current_num_threads(),
+        smoothers,
+        hausdorff_s,
+        hausdorff_queries_per_s: (2 * mesh.n_vertices()) as f64 / hausdorff_s,
+    }
+}

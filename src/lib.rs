@@ -10,6 +10,9 @@ pub mod metrics;
 pub mod parallel;
 pub mod phantom;
 pub mod report;
+pub mod smooth;
+pub mod spatial;
+pub mod weights;
 
 pub use mesh::{Mesh, Topology};
 pub mod bench;

@@ -36,6 +36,59 @@ enum Command {
         #[arg(long, value_enum, default_value_t = ModeArg::Mmap)]
         read_mode: ModeArg,
     },
+    /// Smooth one mesh with one of the papers' smoothers.
+    Smooth {
+        /// Input mesh (.ply, .stl, .obj).
+        input: PathBuf,
+        /// Output mesh (.ply or .stl); vertex order is kept.
+        #[arg(short, long)]
+        output: PathBuf,
+        #[arg(long, value_enum)]
+        method: MethodArg,
+        /// Iterations (the maximum for cell-size, cell-edge and diamond, which stop on convergence).
+        #[arg(long)]
+        iterations: Option<usize>,
+        /// Step factor (default 0.5; 1 for the constrained relaxations).
+        #[arg(long)]
+        lambda: Option<f32>,
+        /// Taubin's negative factor.
+        #[arg(long, default_value_t = -0.53, allow_negative_numbers = true)]
+        mu: f32,
+        /// Laplace+HC: pull towards the original (0) or previous (1) positions.
+        #[arg(long, default_value_t = 0.0)]
+        alpha: f32,
+        /// Laplace+HC: share of a vertex's own correction.
+        #[arg(long, default_value_t = 0.5)]
+        beta: f32,
+        /// Voxel size in mm as X,Y,Z (default: reconstructed from the mesh).
+        #[arg(long, value_parser = parse_voxel)]
+        voxel: Option<[f32; 3]>,
+        /// Relaxations stop when no vertex moves more than this in one iteration (mm).
+        #[arg(long, default_value_t = 0.002)]
+        threshold: f32,
+        /// PLY file with a per-vertex `weight` property in [0, 1] (same vertices as the input).
+        #[arg(long)]
+        weights: Option<PathBuf>,
+        /// Let vertices on open boundary loops move (by default clipped rims stay in place).
+        #[arg(long)]
+        move_boundary: bool,
+        /// Add `weight` and `displacement` (mm) vertex properties to a PLY output.
+        #[arg(long)]
+        annotate: bool,
+    },
+    /// Compare a smoothed mesh with its original: distances, volume, curvature, displacement.
+    Compare {
+        original: PathBuf,
+        smoothed: PathBuf,
+        /// Reference structures whose minimum distance is reported before and after.
+        #[arg(long = "reference")]
+        references: Vec<PathBuf>,
+        /// Voxel size in mm as X,Y,Z for maxD (default: reconstructed from the original).
+        #[arg(long, value_parser = parse_voxel)]
+        voxel: Option<[f32; 3]>,
+        #[arg(long)]
+        json: bool,
+    },
     /// Generate phantom cases: marching-cubes meshes of analytic shapes with real staircases.
     ///
     /// NAME is one of sphere-iso, sphere-aniso, sphere-aniso-1-16, -1-8, -1-4, -1-2, -top,
@@ -73,6 +126,19 @@ enum Command {
 
 #[derive(Subcommand)]
 enum BenchCommand {
+    /// Every smoother (seconds per run, vertex updates per second) and the Hausdorff metric.
+    Smooth {
+        /// Approximate number of triangles of the `big` phantom.
+        #[arg(long, default_value_t = 1_000_000)]
+        triangles: usize,
+        #[arg(long, default_value_t = 20)]
+        iterations: usize,
+        /// Runs per measurement; the best is reported.
+        #[arg(long, default_value_t = 3)]
+        repeat: usize,
+        #[arg(long)]
+        json: bool,
+    },
     /// PLY read+validate, write and topology build on a generated closed mesh.
     Io {
         /// Approximate number of triangles.
@@ -94,6 +160,33 @@ enum BenchCommand {
         #[arg(long)]
         json: bool,
     },
+}
+
+#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum MethodArg {
+    Laplace,
+    Hc,
+    Taubin,
+    Mcf,
+    Npc,
+    CellSize,
+    CellEdge,
+    Diamond,
+}
+
+fn parse_voxel(s: &str) -> Result<[f32; 3], String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    let values: Vec<f32> = parts
+        .iter()
+        .map(|p| p.parse::<f32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("expected three numbers X,Y,Z in mm, got {s:?}"))?;
+    match values.as_slice() {
+        [x, y, z] if values.iter().all(|v| v.is_finite() && *v > 0.0) => Ok([*x, *y, *z]),
+        _ => Err(format!(
+            "expected three positive numbers X,Y,Z in mm, got {s:?}"
+        )),
+    }
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -184,6 +277,181 @@ fn run(command: Command) -> anyhow::Result<()> {
                 print!("{}", report.to_text());
             }
         }
+        Command::Smooth {
+            input,
+            output,
+            method,
+            iterations,
+            lambda,
+            mu,
+            alpha,
+            beta,
+            voxel,
+            threshold,
+            weights,
+            move_boundary,
+            annotate,
+        } => {
+            use destair::smooth::{boundary_vertices, smooth, Method};
+            let loaded = read_mesh(&input, &ReadOptions::default()).map_err(InputError)?;
+            let mesh = &loaded.mesh;
+            let topology = destair::Topology::build(mesh);
+            let needs_voxel = matches!(
+                method,
+                MethodArg::Npc | MethodArg::CellSize | MethodArg::CellEdge | MethodArg::Diamond
+            );
+            let voxel = match (voxel, needs_voxel) {
+                (Some(v), _) => v,
+                (None, false) => [1.0; 3],
+                (None, true) => {
+                    let est = destair::analysis::voxel_size(mesh, &topology);
+                    let s = est.spacing().ok_or_else(|| {
+                        UsageError(format!(
+                            "{}: cannot reconstruct the voxel size from the mesh ({est:?}); pass --voxel X,Y,Z",
+                            input.display()
+                        ))
+                    })?;
+                    s.map(|x| x as f32)
+                }
+            };
+            let relax_lambda = lambda.unwrap_or(1.0);
+            let lambda = lambda.unwrap_or(0.5);
+            let method = match method {
+                MethodArg::Laplace => Method::Laplace { lambda },
+                MethodArg::Hc => Method::Hc {
+                    lambda,
+                    alpha,
+                    beta,
+                },
+                MethodArg::Taubin => Method::Taubin { lambda, mu },
+                MethodArg::Mcf => Method::Mcf { lambda },
+                MethodArg::Npc => Method::Npc { lambda, voxel },
+                MethodArg::CellSize => Method::CellSize {
+                    lambda: relax_lambda,
+                    voxel,
+                    threshold,
+                },
+                MethodArg::CellEdge => Method::CellEdge {
+                    lambda: relax_lambda,
+                    voxel,
+                    threshold,
+                },
+                MethodArg::Diamond => Method::Diamond {
+                    lambda: relax_lambda,
+                    voxel,
+                    threshold,
+                },
+            };
+            let iterations = iterations.unwrap_or(if method.is_relaxation() { 1000 } else { 20 });
+            let weights = match weights {
+                None => destair::weights::VertexWeights::uniform(mesh.n_vertices()),
+                Some(path) => {
+                    let options = ReadOptions {
+                        keep_vertex_properties: true,
+                        ..Default::default()
+                    };
+                    let w = read_mesh(&path, &options).map_err(InputError)?;
+                    let values = w
+                        .vertex_properties
+                        .into_iter()
+                        .find(|p| p.name == "weight")
+                        .ok_or_else(|| {
+                            UsageError(format!("{}: no vertex property 'weight'", path.display()))
+                        })?
+                        .values;
+                    destair::weights::VertexWeights::new(values, mesh.n_vertices())
+                        .map_err(|e| UsageError(format!("{}: {e}", path.display())))?
+                }
+            };
+            let fixed = if move_boundary {
+                vec![false; mesh.n_vertices()]
+            } else {
+                boundary_vertices(&topology)
+            };
+            let started = std::time::Instant::now();
+            let (positions, stats) = smooth(mesh, &topology, &method, iterations, &weights, &fixed);
+            let seconds = started.elapsed().as_secs_f64();
+            let mut smoothed = mesh.clone();
+            smoothed.positions_mut().copy_from_slice(&positions);
+            let lengths: Vec<f32> = destair::metrics::displacements(mesh.positions(), &positions)
+                .into_iter()
+                .map(|d| d as f32)
+                .collect();
+            match output
+                .extension()
+                .and_then(|e| e.to_str())
+                .map(str::to_ascii_lowercase)
+                .as_deref()
+            {
+                Some("ply") => {
+                    let props: Vec<(&str, &[f32])> = if annotate {
+                        vec![("weight", weights.as_slice()), ("displacement", &lengths)]
+                    } else {
+                        Vec::new()
+                    };
+                    destair::io::ply::write_ply(&output, &smoothed, &loaded.meta, &props)?
+                }
+                Some("stl") => destair::io::stl::write_stl(&output, &smoothed, &loaded.meta)?,
+                _ => {
+                    return Err(UsageError(format!(
+                        "{}: output must end in .ply or .stl",
+                        output.display()
+                    ))
+                    .into())
+                }
+            }
+            println!(
+                "{} {}: {} iterations{} in {:.3} s, last step {:.5} mm, {} vertices fixed -> {}",
+                method.name(),
+                input.display(),
+                stats.iterations,
+                if method.is_relaxation() {
+                    if stats.converged {
+                        " (converged)"
+                    } else {
+                        " (not converged)"
+                    }
+                } else {
+                    ""
+                },
+                seconds,
+                stats.last_max_step,
+                stats.n_fixed,
+                output.display()
+            );
+        }
+        Command::Compare {
+            original,
+            smoothed,
+            references,
+            voxel,
+            json,
+        } => {
+            let read = |p: &PathBuf| read_mesh(p, &ReadOptions::default()).map_err(InputError);
+            let a = read(&original)?;
+            let b = read(&smoothed)?;
+            let refs = references
+                .iter()
+                .map(|p| {
+                    let name = p.file_stem().map_or_else(
+                        || p.display().to_string(),
+                        |s| s.to_string_lossy().into_owned(),
+                    );
+                    read(p).map(|m| (name, m.mesh))
+                })
+                .collect::<Result<Vec<_>, _>>()?;
+            let report = destair::report::compare::compare(
+                &a.mesh,
+                &b.mesh,
+                &refs,
+                voxel.map(|v| v.map(f64::from)),
+            );
+            if json {
+                println!("{}", serde_json::to_string_pretty(&report)?);
+            } else {
+                print!("{}", report.to_text());
+            }
+        }
         Command::Phantom {
             name,
             size,
@@ -246,6 +514,38 @@ fn run(command: Command) -> anyhow::Result<()> {
                 }
             }
             eprintln!("generated in {:.2} s", started.elapsed().as_secs_f64());
+        }
+        Command::Bench {
+            what:
+                BenchCommand::Smooth {
+                    triangles,
+                    iterations,
+                    repeat,
+                    json,
+                },
+        } => {
+            let r = destair::bench::smooth(triangles, iterations, repeat);
+            if json {
+                println!("{}", serde_json::to_string_pretty(&r)?);
+            } else {
+                println!(
+                    "bench smooth: {} vertices, {} triangles, {} iterations, {} threads, best of {repeat}",
+                    r.n_vertices, r.n_triangles, r.iterations, r.threads
+                );
+                for t in &r.smoothers {
+                    println!(
+                        "  {:<10} {:.4} s  {:.1} M vertex-updates/s",
+                        t.method,
+                        t.seconds,
+                        t.vertex_updates_per_s / 1e6
+                    );
+                }
+                println!(
+                    "  hausdorff  {:.4} s  ({:.2} M point-to-surface queries/s, grids included)",
+                    r.hausdorff_s,
+                    r.hausdorff_queries_per_s / 1e6
+                );
+            }
         }
         Command::Bench {
             what:

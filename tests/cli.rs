@@ -178,3 +178,116 @@ fn phantom_writes_meshes_and_description() {
     assert_eq!(bad.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&bad.stderr).contains("unknown phantom"));
 }
+
+#[test]
+fn smooth_then_compare() {
+    let dir = tempfile::tempdir().unwrap();
+    let case = dir.path().join("neck");
+    assert!(
+        destair(&["phantom", "neck", "--out", case.to_str().unwrap()])
+            .status
+            .success()
+    );
+    let tumor = case.join("tumor.ply");
+    let vein = case.join("vein.ply");
+    let out = dir.path().join("tumor-smooth.ply");
+    for method in [
+        "laplace",
+        "hc",
+        "taubin",
+        "mcf",
+        "npc",
+        "cell-size",
+        "cell-edge",
+        "diamond",
+    ] {
+        let run = destair(&[
+            "smooth",
+            tumor.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--method",
+            method,
+            "--annotate",
+        ]);
+        assert!(
+            run.status.success(),
+            "{method}: {}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let cmp = destair(&[
+            "compare",
+            tumor.to_str().unwrap(),
+            out.to_str().unwrap(),
+            "--reference",
+            vein.to_str().unwrap(),
+            "--json",
+        ]);
+        assert!(cmp.status.success());
+        let json: serde_json::Value = serde_json::from_slice(&cmp.stdout).unwrap();
+        let c0 = json["normal_curvature_original_deg"].as_f64().unwrap();
+        let c1 = json["normal_curvature_smoothed_deg"].as_f64().unwrap();
+        assert!(c1 < c0, "{method}: curvature {c0} -> {c1}");
+        assert_eq!(json["references"][0]["name"], "vein");
+        assert!(json["displacement"]["max_mm"].as_f64().unwrap() > 0.0);
+        assert_eq!(json["voxel_size_mm"][2], 3.0);
+    }
+    // The annotated output carries weight and displacement properties.
+    let text = String::from_utf8_lossy(&std::fs::read(&out).unwrap()[..400]).into_owned();
+    assert!(text.contains("property float weight") && text.contains("property float displacement"));
+    // A rotated mesh has no reconstructable voxel size: constrained methods ask for --voxel.
+    let rotated = dir.path().join("rot");
+    assert!(destair(&[
+        "phantom",
+        "sphere-iso",
+        "--rotate-x",
+        "20",
+        "--out",
+        rotated.to_str().unwrap()
+    ])
+    .status
+    .success());
+    let run = destair(&[
+        "smooth",
+        rotated.join("sphere.ply").to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--method",
+        "diamond",
+    ]);
+    assert_eq!(run.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&run.stderr).contains("--voxel"));
+    let run = destair(&[
+        "smooth",
+        rotated.join("sphere.ply").to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--method",
+        "diamond",
+        "--voxel",
+        "1,1,1",
+    ]);
+    assert!(run.status.success());
+    // Weights from a PLY property: weight 0 everywhere leaves the mesh as it was.
+    let zero = dir.path().join("zero.ply");
+    let loaded = destair::io::read_mesh(&tumor, &Default::default()).unwrap();
+    let w = vec![0.0f32; loaded.mesh.n_vertices()];
+    destair::io::ply::write_ply(&zero, &loaded.mesh, &loaded.meta, &[("weight", &w)]).unwrap();
+    let run = destair(&[
+        "smooth",
+        tumor.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--method",
+        "laplace",
+        "--weights",
+        zero.to_str().unwrap(),
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let smoothed = destair::io::read_mesh(&out, &Default::default()).unwrap();
+    assert_eq!(smoothed.mesh.positions(), loaded.mesh.positions());
+}

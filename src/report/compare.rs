@@ -1,0 +1,169 @@
+//! The `compare` report: what smoothing did to a mesh, in the papers' measures.
+
+use crate::analysis::voxel_size;
+use crate::mesh::{Mesh, Topology};
+use crate::metrics::{
+    average_normal_curvature, displacement_stats, displacements, enclosed_volume,
+    min_triangle_angle, minimum_distance, surface_distance, DisplacementStats, SurfaceDistance,
+};
+use crate::spatial::TriangleGrid;
+use serde::Serialize;
+use std::fmt::Write;
+
+/// Minimum distance to one reference structure before and after.
+#[derive(Debug, Clone, Serialize)]
+pub struct ReferenceDistance {
+    pub name: String,
+    pub before_mm: f64,
+    pub after_mm: f64,
+    pub change_mm: f64,
+}
+
+/// Everything `destair compare` reports.
+#[derive(Debug, Clone, Serialize)]
+pub struct CompareReport {
+    pub n_vertices_original: usize,
+    pub n_vertices_smoothed: usize,
+    /// Hausdorff and mean minimum distances between the two surfaces.
+    pub distance: SurfaceDistance,
+    pub volume_original_mm3: f64,
+    pub volume_smoothed_mm3: f64,
+    /// Smoothed volume in % of the original.
+    pub volume_percent: f64,
+    /// Boundary loops closed by centroid fans to compute the volumes.
+    pub loops_closed_by_fans: usize,
+    pub normal_curvature_original_deg: f64,
+    pub normal_curvature_smoothed_deg: f64,
+    pub min_triangle_angle_original_deg: f64,
+    pub min_triangle_angle_smoothed_deg: f64,
+    /// Per-vertex displacement, when both meshes have the same vertices and triangles.
+    pub displacement: Option<DisplacementStats>,
+    /// Voxel size (given, or reconstructed from the original), mm.
+    pub voxel_size_mm: Option<[f64; 3]>,
+    /// Hausdorff distance as a fraction of the voxel diagonal (Bade 2007's maxD).
+    pub max_d_voxel_diagonals: Option<f64>,
+    pub references: Vec<ReferenceDistance>,
+}
+
+/// Compares a smoothed mesh with its original (and with reference structures).
+pub fn compare(
+    original: &Mesh,
+    smoothed: &Mesh,
+    references: &[(String, Mesh)],
+    voxel: Option<[f64; 3]>,
+) -> CompareReport {
+    let topo_o = Topology::build(original);
+    let topo_s = Topology::build(smoothed);
+    let grid_o = TriangleGrid::build(original);
+    let grid_s = TriangleGrid::build(smoothed);
+    let distance = surface_distance(original, &grid_o, smoothed, &grid_s);
+    let vol_o = enclosed_volume(original, &topo_o);
+    let vol_s = enclosed_volume(smoothed, &topo_s);
+    let same_vertices = original.n_vertices() == smoothed.n_vertices()
+        && original.triangles() == smoothed.triangles();
+    let displacement = same_vertices
+        .then(|| displacement_stats(&displacements(original.positions(), smoothed.positions())));
+    let voxel_size_mm = voxel.or_else(|| voxel_size(original, &topo_o).spacing());
+    let max_d_voxel_diagonals = voxel_size_mm
+        .map(|h| distance.hausdorff_mm / (h[0] * h[0] + h[1] * h[1] + h[2] * h[2]).sqrt());
+    let references = references
+        .iter()
+        .map(|(name, r)| {
+            let grid_r = TriangleGrid::build(r);
+            let before_mm = minimum_distance(original, &grid_o, r, &grid_r);
+            let after_mm = minimum_distance(smoothed, &grid_s, r, &grid_r);
+            ReferenceDistance {
+                name: name.clone(),
+                before_mm,
+                after_mm,
+                change_mm: after_mm - before_mm,
+            }
+        })
+        .collect();
+    CompareReport {
+        n_vertices_original: original.n_vertices(),
+        n_vertices_smoothed: smoothed.n_vertices(),
+        distance,
+        volume_original_mm3: vol_o.mm3,
+        volume_smoothed_mm3: vol_s.mm3,
+        volume_percent: if vol_o.mm3 != 0.0 {
+            100.0 * vol_s.mm3 / vol_o.mm3
+        } else {
+            f64::NAN
+        },
+        loops_closed_by_fans: vol_o.loops_closed_by_fans.max(vol_s.loops_closed_by_fans),
+        normal_curvature_original_deg: average_normal_curvature(original, &topo_o),
+        normal_curvature_smoothed_deg: average_normal_curvature(smoothed, &topo_s),
+        min_triangle_angle_original_deg: min_triangle_angle(original),
+        min_triangle_angle_smoothed_deg: min_triangle_angle(smoothed),
+        displacement,
+        voxel_size_mm,
+        max_d_voxel_diagonals,
+        references,
+    }
+}
+
+impl CompareReport {
+    /// The report as human-readable text.
+    pub fn to_text(&self) -> String {
+        let mut s = String::new();
+        let d = &self.distance;
+        let _ = writeln!(
+            s,
+            "Hausdorff distance      {:.4} mm (original->smoothed {:.4}, smoothed->original {:.4})",
+            d.hausdorff_mm, d.a_to_b_max_mm, d.b_to_a_max_mm
+        );
+        let _ = writeln!(
+            s,
+            "mean min distance       {:.4} mm (original->smoothed {:.4}, smoothed->original {:.4})",
+            d.mean_mm, d.a_to_b_mean_mm, d.b_to_a_mean_mm
+        );
+        if let Some(m) = self.max_d_voxel_diagonals {
+            let _ = writeln!(s, "maxD                    {m:.3} voxel diagonals");
+        }
+        let fans = if self.loops_closed_by_fans > 0 {
+            format!(
+                " ({} open boundary loops closed by centroid fans)",
+                self.loops_closed_by_fans
+            )
+        } else {
+            String::new()
+        };
+        let _ = writeln!(
+            s,
+            "volume                  {:.3} -> {:.3} mm³ ({:.2} %){fans}",
+            self.volume_original_mm3, self.volume_smoothed_mm3, self.volume_percent
+        );
+        let _ = writeln!(
+            s,
+            "avg. normal curvature   {:.3} -> {:.3} degrees",
+            self.normal_curvature_original_deg, self.normal_curvature_smoothed_deg
+        );
+        let _ = writeln!(
+            s,
+            "min. triangle angle     {:.3} -> {:.3} degrees",
+            self.min_triangle_angle_original_deg, self.min_triangle_angle_smoothed_deg
+        );
+        if let Some(dp) = &self.displacement {
+            let _ = writeln!(s, "displacement            mean {:.4}  rms {:.4}  median {:.4}  p95 {:.4}  max {:.4} mm; {} vertices unmoved", dp.mean_mm, dp.rms_mm, dp.median_mm, dp.p95_mm, dp.max_mm, dp.n_unmoved);
+            let peak = dp.histogram.iter().copied().max().unwrap_or(1).max(1);
+            for (i, &c) in dp.histogram.iter().enumerate() {
+                let bar = "#".repeat((40 * c / peak) as usize);
+                let _ = writeln!(
+                    s,
+                    "  {:>8.4}-{:<8.4} {c:>9} {bar}",
+                    i as f64 * dp.bin_width_mm,
+                    (i + 1) as f64 * dp.bin_width_mm
+                );
+            }
+        }
+        for r in &self.references {
+            let _ = writeln!(
+                s,
+                "distance to {:<12} {:.4} -> {:.4} mm (change {:+.4})",
+                r.name, r.before_mm, r.after_mm, r.change_mm
+            );
+        }
+        s
+    }
+}

@@ -1,0 +1,88 @@
+//! Laplace+HC (Vollmer, Mencl, Mueller 1999): a Laplace step, then each vertex is pushed back
+//! by beta of its own difference b = p - (alpha o + (1 - alpha) q) plus (1 - beta) of its
+//! neighbours' mean difference, which cancels most of Laplace's shrinkage.
+
+use super::{max_step, CHUNK};
+use crate::mesh::Topology;
+use rayon::prelude::*;
+
+pub(super) fn hc(
+    original: &[[f32; 3]],
+    topology: &Topology,
+    scale: &[f32],
+    lambda: f32,
+    alpha: f32,
+    beta: f32,
+    iterations: usize,
+) -> (Vec<[f32; 3]>, f32) {
+    let (offsets, neighbors) = topology.neighbor_csr();
+    let n = original.len();
+    let mut q = original.to_vec();
+    let mut p = original.to_vec();
+    let mut diff = vec![[0.0f32; 3]; n];
+    for _ in 0..iterations {
+        // Laplace step p and difference b, from q.
+        p.par_chunks_mut(CHUNK)
+            .zip(diff.par_chunks_mut(CHUNK))
+            .enumerate()
+            .for_each(|(c, (pc, bc))| {
+                let first = c * CHUNK;
+                for (i, (po, bo)) in pc.iter_mut().zip(bc.iter_mut()).enumerate() {
+                    let v = first + i;
+                    let qv = q[v];
+                    let (a, b) = (offsets[v] as usize, offsets[v + 1] as usize);
+                    let mut r = qv;
+                    if scale[v] != 0.0 {
+                        let mut sum = [0.0f32; 3];
+                        for &nb in &neighbors[a..b] {
+                            let x = q[nb as usize];
+                            sum[0] += x[0];
+                            sum[1] += x[1];
+                            sum[2] += x[2];
+                        }
+                        let inv = 1.0 / (b - a) as f32;
+                        for k in 0..3 {
+                            r[k] = qv[k] + lambda * (sum[k] * inv - qv[k]);
+                        }
+                    }
+                    *po = r;
+                    let o = original[v];
+                    *bo = std::array::from_fn(|k| r[k] - (alpha * o[k] + (1.0 - alpha) * qv[k]));
+                }
+            });
+        // Back-correction; the weight scales the whole step from q.
+        p.par_chunks_mut(CHUNK).enumerate().for_each(|(c, pc)| {
+            let first = c * CHUNK;
+            for (i, po) in pc.iter_mut().enumerate() {
+                let v = first + i;
+                let s = scale[v];
+                let qv = q[v];
+                if s == 0.0 {
+                    *po = qv;
+                    continue;
+                }
+                let (a, b) = (offsets[v] as usize, offsets[v + 1] as usize);
+                let mut sum = [0.0f32; 3];
+                for &nb in &neighbors[a..b] {
+                    let x = diff[nb as usize];
+                    sum[0] += x[0];
+                    sum[1] += x[1];
+                    sum[2] += x[2];
+                }
+                let inv = 1.0 / (b - a) as f32;
+                let bv = diff[v];
+                *po = std::array::from_fn(|k| {
+                    let corrected = po[k] - (beta * bv[k] + (1.0 - beta) * sum[k] * inv);
+                    qv[k] + s * (corrected - qv[k])
+                });
+            }
+        });
+        std::mem::swap(&mut p, &mut q);
+    }
+    let last = if iterations > 0 {
+        max_step(&q, &p)
+    } else {
+        0.0
+    };
+    (q, last)
+}

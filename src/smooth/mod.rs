@@ -1,0 +1,241 @@
+//! The base smoothers the papers compare, each scaling its per-step displacement by a
+//! per-vertex weight and leaving fixed vertices in place: Laplace (umbrella), Laplace+HC
+//! (Vollmer 1999), Taubin lambda|mu (Taubin 1995), mean curvature flow with normalised cotangent
+//! weights, Laplace with node-position constraint (Moench 2010), and the cell-size-, cell-edge-
+//! and diamond-constrained relaxations of Bade 2007.
+//!
+//! All are Jacobi-style: every step reads the previous positions and writes a second buffer,
+//! in parallel over vertex chunks, so results are bit-identical for any thread count. Buffers
+//! are allocated once per call, never inside the iteration loop.
+
+mod constraints;
+mod hc;
+mod laplace;
+mod mcf;
+
+pub use constraints::cell_edge_axes;
+
+use crate::mesh::{Mesh, Topology};
+use crate::weights::VertexWeights;
+use serde::Serialize;
+
+/// Vertices per parallel task in the smoothing kernels.
+pub(crate) const CHUNK: usize = 2048;
+
+/// A smoother and its parameters.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(tag = "method", rename_all = "snake_case")]
+pub enum Method {
+    /// Umbrella operator: v += lambda w (mean(neighbours) - v).
+    Laplace { lambda: f32 },
+    /// Laplace followed by Vollmer's back-correction towards alpha o + (1 - alpha) q.
+    Hc { lambda: f32, alpha: f32, beta: f32 },
+    /// Alternating lambda and mu (< 0) umbrella steps; one iteration is one pair.
+    Taubin { lambda: f32, mu: f32 },
+    /// Explicit mean curvature flow with normalised, clamped cotangent weights.
+    Mcf { lambda: f32 },
+    /// Laplace, then each vertex clamped into the voxel-sized box around its original position.
+    Npc { lambda: f32, voxel: [f32; 3] },
+    /// Relaxation clipped to +-h/2 per axis around the original position (Bade 2007, §4.1).
+    CellSize {
+        lambda: f32,
+        voxel: [f32; 3],
+        threshold: f32,
+    },
+    /// Relaxation along each vertex's own grid edge only, +-h/2 (Bade 2007, §4.3).
+    CellEdge {
+        lambda: f32,
+        voxel: [f32; 3],
+        threshold: f32,
+    },
+    /// Relaxation clipped to the octahedron |dx|/hx + |dy|/hy + |dz|/hz <= 1/2 (Bade 2007, §4.4).
+    Diamond {
+        lambda: f32,
+        voxel: [f32; 3],
+        threshold: f32,
+    },
+}
+
+impl Method {
+    /// Whether the method iterates to convergence (then `iterations` is the maximum).
+    pub fn is_relaxation(&self) -> bool {
+        matches!(
+            self,
+            Method::CellSize { .. } | Method::CellEdge { .. } | Method::Diamond { .. }
+        )
+    }
+
+    /// The method's short name as used on the command line.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Method::Laplace { .. } => "laplace",
+            Method::Hc { .. } => "hc",
+            Method::Taubin { .. } => "taubin",
+            Method::Mcf { .. } => "mcf",
+            Method::Npc { .. } => "npc",
+            Method::CellSize { .. } => "cell-size",
+            Method::CellEdge { .. } => "cell-edge",
+            Method::Diamond { .. } => "diamond",
+        }
+    }
+}
+
+/// What a smoothing run did.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct SmoothStats {
+    /// Iterations run (pairs of steps for Taubin).
+    pub iterations: usize,
+    /// Largest distance a vertex moved in the last iteration (mm).
+    pub last_max_step: f32,
+    /// For relaxations: whether the last step fell below the threshold.
+    pub converged: bool,
+    /// Vertices that could not move (fixed mask, weight 0, or no grid edge for cell-edge).
+    pub n_fixed: usize,
+}
+
+/// Smooths `mesh` with `method` for `iterations` steps (the maximum for relaxations), scaling
+/// each vertex's displacement by its weight and keeping `fixed` vertices in place. Returns the
+/// new positions (same order as the mesh) and what happened.
+pub fn smooth(
+    mesh: &Mesh,
+    topology: &Topology,
+    method: &Method,
+    iterations: usize,
+    weights: &VertexWeights,
+    fixed: &[bool],
+) -> (Vec<[f32; 3]>, SmoothStats) {
+    let n = mesh.n_vertices();
+    // Per-vertex step scale: the weight, 0 where fixed or isolated.
+    let (offsets, _) = topology.neighbor_csr();
+    let mut scale: Vec<f32> = (0..n)
+        .map(|v| {
+            let isolated = offsets[v] == offsets[v + 1];
+            if fixed.get(v).copied().unwrap_or(false) || isolated {
+                0.0
+            } else {
+                weights.as_slice()[v]
+            }
+        })
+        .collect();
+    let original = mesh.positions();
+    let (positions, iterations, last_max_step, converged) = match *method {
+        Method::Laplace { lambda } => {
+            let (p, s) = laplace::laplace(original, topology, &scale, &[lambda], iterations, None);
+            (p, iterations, s, false)
+        }
+        Method::Taubin { lambda, mu } => {
+            let (p, s) =
+                laplace::laplace(original, topology, &scale, &[lambda, mu], iterations, None);
+            (p, iterations, s, false)
+        }
+        Method::Npc { lambda, voxel } => {
+            let (p, s) = laplace::laplace(
+                original,
+                topology,
+                &scale,
+                &[lambda],
+                iterations,
+                Some(voxel),
+            );
+            (p, iterations, s, false)
+        }
+        Method::Hc {
+            lambda,
+            alpha,
+            beta,
+        } => {
+            let (p, s) = hc::hc(original, topology, &scale, lambda, alpha, beta, iterations);
+            (p, iterations, s, false)
+        }
+        Method::Mcf { lambda } => {
+            let (p, s) = mcf::mcf(mesh, topology, &scale, lambda, iterations);
+            (p, iterations, s, false)
+        }
+        Method::CellSize {
+            lambda,
+            voxel,
+            threshold,
+        } => constraints::relax(
+            original,
+            topology,
+            &scale,
+            lambda,
+            constraints::Region::Box(voxel),
+            None,
+            threshold,
+            iterations,
+        ),
+        Method::Diamond {
+            lambda,
+            voxel,
+            threshold,
+        } => constraints::relax(
+            original,
+            topology,
+            &scale,
+            lambda,
+            constraints::Region::Diamond(voxel),
+            None,
+            threshold,
+            iterations,
+        ),
+        Method::CellEdge {
+            lambda,
+            voxel,
+            threshold,
+        } => {
+            let axes = cell_edge_axes(mesh, voxel);
+            for (s, a) in scale.iter_mut().zip(&axes) {
+                if a.is_none() {
+                    *s = 0.0;
+                }
+            }
+            constraints::relax(
+                original,
+                topology,
+                &scale,
+                lambda,
+                constraints::Region::Box(voxel),
+                Some(&axes),
+                threshold,
+                iterations,
+            )
+        }
+    };
+    let stats = SmoothStats {
+        iterations,
+        last_max_step,
+        converged,
+        n_fixed: scale.iter().filter(|&&s| s == 0.0).count(),
+    };
+    (positions, stats)
+}
+
+/// The default fixed mask: vertices on open boundary loops (clipped vessel ends keep their rims).
+pub fn boundary_vertices(topology: &Topology) -> Vec<bool> {
+    let mut fixed = vec![false; topology.n_vertices()];
+    for l in topology.boundary_loops() {
+        for &v in &l.vertices {
+            fixed[v as usize] = true;
+        }
+    }
+    fixed
+}
+
+/// Largest per-vertex distance between two position buffers (mm); order-independent.
+pub(crate) fn max_step(a: &[[f32; 3]], b: &[[f32; 3]]) -> f32 {
+    use rayon::prelude::*;
+    a.par_chunks(CHUNK)
+        .zip(b.par_chunks(CHUNK))
+        .map(|(x, y)| {
+            x.iter()
+                .zip(y)
+                .map(|(p, q)| {
+                    let d = [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
+                    d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+                })
+                .fold(0.0f32, f32::max)
+        })
+        .reduce(|| 0.0, f32::max)
+        .sqrt()
+}

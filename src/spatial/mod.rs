@@ -1,0 +1,356 @@
+//! Exact point-to-surface distance: the closest point on a triangle, and a uniform grid over a
+//! mesh's triangles that answers nearest-triangle queries by searching rings of cells outward
+//! until no unvisited cell can hold anything closer.
+
+use crate::mesh::Mesh;
+use rayon::prelude::*;
+
+type V3 = [f64; 3];
+
+#[inline]
+fn sub(a: V3, b: V3) -> V3 {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+#[inline]
+fn dot(a: V3, b: V3) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+#[inline]
+fn along(a: V3, d: V3, t: f64) -> V3 {
+    [a[0] + t * d[0], a[1] + t * d[1], a[2] + t * d[2]]
+}
+
+/// The point of triangle (a, b, c) closest to p (Ericson, Real-Time Collision Detection, 5.1.5),
+/// in f64 so distances are exact to float precision even for slivers.
+pub fn closest_point_on_triangle(p: V3, a: V3, b: V3, c: V3) -> V3 {
+    let ab = sub(b, a);
+    let ac = sub(c, a);
+    let ap = sub(p, a);
+    let d1 = dot(ab, ap);
+    let d2 = dot(ac, ap);
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = sub(p, b);
+    let d3 = dot(ab, bp);
+    let d4 = dot(ac, bp);
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = d1 / (d1 - d3);
+        return along(a, ab, v);
+    }
+    let cp = sub(p, c);
+    let d5 = dot(ab, cp);
+    let d6 = dot(ac, cp);
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = d2 / (d2 - d6);
+        return along(a, ac, w);
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return along(b, sub(c, b), w);
+    }
+    let denom = va + vb + vc;
+    if denom.abs() < f64::MIN_POSITIVE || !denom.is_finite() {
+        // Degenerate (collinear) triangle: the closest of its three edges.
+        let edges = [(a, b), (b, c), (c, a)];
+        return edges
+            .iter()
+            .map(|&(s, e)| {
+                let d = sub(e, s);
+                let len2 = dot(d, d);
+                let t = if len2 > 0.0 {
+                    (dot(sub(p, s), d) / len2).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
+                along(s, d, t)
+            })
+            .min_by(|x, y| dot(sub(p, *x), sub(p, *x)).total_cmp(&dot(sub(p, *y), sub(p, *y))))
+            .unwrap_or(a);
+    }
+    let v = vb / denom;
+    let w = vc / denom;
+    [
+        a[0] + ab[0] * v + ac[0] * w,
+        a[1] + ab[1] * v + ac[1] * w,
+        a[2] + ab[2] * v + ac[2] * w,
+    ]
+}
+
+/// Distance (mm) from p to triangle (a, b, c).
+pub fn point_triangle_distance(p: [f32; 3], t: [[f32; 3]; 3]) -> f64 {
+    let f = |q: [f32; 3]| q.map(f64::from);
+    let p = f(p);
+    let q = closest_point_on_triangle(p, f(t[0]), f(t[1]), f(t[2]));
+    let d = sub(p, q);
+    dot(d, d).sqrt()
+}
+
+/// A uniform grid over a mesh's triangles for nearest-triangle queries. Build once, query many.
+#[derive(Debug, Clone)]
+pub struct TriangleGrid {
+    triangles: Vec<[[f32; 3]; 3]>,
+    /// Bounding sphere per triangle (centre, radius), to skip most exact tests.
+    spheres: Vec<([f64; 3], f64)>,
+    origin: [f64; 3],
+    cell: f64,
+    dims: [usize; 3],
+    cell_offsets: Vec<u32>,
+    cell_triangles: Vec<u32>,
+}
+
+/// The nearest point of a surface to a query point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Nearest {
+    /// Distance in mm.
+    pub distance: f64,
+    pub triangle: u32,
+}
+
+impl TriangleGrid {
+    /// Indexes the triangles of `mesh`; cells are about twice the mean edge length.
+    pub fn build(mesh: &Mesh) -> TriangleGrid {
+        let p = mesh.positions();
+        let triangles: Vec<[[f32; 3]; 3]> = mesh
+            .triangles()
+            .iter()
+            .map(|t| t.map(|v| p[v as usize]))
+            .collect();
+        let n = triangles.len().max(1);
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        let mut edge_sum = 0.0f64;
+        for t in &triangles {
+            for (k, q) in t.iter().enumerate() {
+                for a in 0..3 {
+                    lo[a] = lo[a].min(q[a] as f64);
+                    hi[a] = hi[a].max(q[a] as f64);
+                }
+                let r = t[(k + 1) % 3];
+                edge_sum += (0..3)
+                    .map(|a| (q[a] as f64 - r[a] as f64).powi(2))
+                    .sum::<f64>()
+                    .sqrt();
+            }
+        }
+        if triangles.is_empty() {
+            lo = [0.0; 3];
+            hi = [0.0; 3];
+        }
+        let extent: [f64; 3] = std::array::from_fn(|a| (hi[a] - lo[a]).max(0.0));
+        let max_extent = extent.iter().cloned().fold(0.0, f64::max).max(1e-9);
+        let mut cell = (2.0 * edge_sum / (3 * n) as f64)
+            .max(max_extent * 1e-6)
+            .max(1e-9);
+        // Keep the number of cells within a few per triangle.
+        let budget = (4 * n + 64) as f64;
+        let count = |c: f64| {
+            extent
+                .iter()
+                .map(|e| (e / c).floor() + 1.0)
+                .product::<f64>()
+        };
+        if count(cell) > budget {
+            cell *= (count(cell) / budget).cbrt();
+            while count(cell) > budget {
+                cell *= 1.1;
+            }
+        }
+        let dims: [usize; 3] = std::array::from_fn(|a| (extent[a] / cell).floor() as usize + 1);
+        let cell_of =
+            |x: f64, a: usize| (((x - lo[a]) / cell).floor().max(0.0) as usize).min(dims[a] - 1);
+        let linear = |i: usize, j: usize, k: usize| (k * dims[1] + j) * dims[0] + i;
+        let range = |t: &[[f32; 3]; 3]| -> [std::ops::RangeInclusive<usize>; 3] {
+            std::array::from_fn(|a| {
+                let mn = t.iter().map(|q| q[a] as f64).fold(f64::INFINITY, f64::min);
+                let mx = t
+                    .iter()
+                    .map(|q| q[a] as f64)
+                    .fold(f64::NEG_INFINITY, f64::max);
+                cell_of(mn, a)..=cell_of(mx, a)
+            })
+        };
+        let n_cells = dims[0] * dims[1] * dims[2];
+        let mut cell_offsets = vec![0u32; n_cells + 1];
+        for t in &triangles {
+            let [ri, rj, rk] = range(t);
+            for k in rk {
+                for j in rj.clone() {
+                    for i in ri.clone() {
+                        cell_offsets[linear(i, j, k) + 1] += 1;
+                    }
+                }
+            }
+        }
+        for i in 1..cell_offsets.len() {
+            cell_offsets[i] += cell_offsets[i - 1];
+        }
+        let mut cursor = cell_offsets[..n_cells].to_vec();
+        let mut cell_triangles = vec![0u32; cell_offsets[n_cells] as usize];
+        for (f, t) in triangles.iter().enumerate() {
+            let [ri, rj, rk] = range(t);
+            for k in rk {
+                for j in rj.clone() {
+                    for i in ri.clone() {
+                        let c = &mut cursor[linear(i, j, k)];
+                        cell_triangles[*c as usize] = f as u32;
+                        *c += 1;
+                    }
+                }
+            }
+        }
+        let spheres = triangles
+            .par_iter()
+            .map(|t| {
+                let c: [f64; 3] = std::array::from_fn(|a| {
+                    (t[0][a] as f64 + t[1][a] as f64 + t[2][a] as f64) / 3.0
+                });
+                let r = t
+                    .iter()
+                    .map(|q| (0..3).map(|a| (q[a] as f64 - c[a]).powi(2)).sum::<f64>())
+                    .fold(0.0, f64::max)
+                    .sqrt();
+                (c, r)
+            })
+            .collect();
+        TriangleGrid {
+            triangles,
+            spheres,
+            origin: lo,
+            cell,
+            dims,
+            cell_offsets,
+            cell_triangles,
+        }
+    }
+
+    /// Number of indexed triangles.
+    pub fn n_triangles(&self) -> usize {
+        self.triangles.len()
+    }
+
+    /// The nearest triangle to `p` and its distance; `None` if there are no triangles.
+    pub fn nearest(&self, p: [f32; 3]) -> Option<Nearest> {
+        if self.triangles.is_empty() {
+            return None;
+        }
+        let q = p.map(f64::from);
+        let dims = self.dims;
+        let center: [usize; 3] = std::array::from_fn(|a| {
+            (((q[a] - self.origin[a]) / self.cell).floor().max(0.0) as usize).min(dims[a] - 1)
+        });
+        let mut best = f64::INFINITY;
+        let mut best_triangle = 0u32;
+        let max_ring = dims.iter().copied().max().unwrap_or(1);
+        for r in 0..=max_ring {
+            let lo: [usize; 3] = std::array::from_fn(|a| center[a].saturating_sub(r));
+            let hi: [usize; 3] = std::array::from_fn(|a| (center[a] + r).min(dims[a] - 1));
+            // Only the shell of ring r (inner cells were searched already): whole rows where
+            // j or k is on the shell, else just the two end cells of the row.
+            let mut visit = |i: usize, j: usize, k: usize| {
+                // Skip cells that cannot hold anything closer than the best so far.
+                let cell_gap2: f64 = [i, j, k]
+                    .iter()
+                    .enumerate()
+                    .map(|(a, &x)| {
+                        let lo = self.origin[a] + x as f64 * self.cell;
+                        let gap = (lo - q[a]).max(q[a] - (lo + self.cell)).max(0.0);
+                        gap * gap
+                    })
+                    .sum();
+                if cell_gap2 > best * best {
+                    return;
+                }
+                let c = (k * dims[1] + j) * dims[0] + i;
+                let ids = &self.cell_triangles
+                    [self.cell_offsets[c] as usize..self.cell_offsets[c + 1] as usize];
+                for &f in ids {
+                    let (centre, radius) = self.spheres[f as usize];
+                    let to_centre = (0..3)
+                        .map(|a| (q[a] - centre[a]).powi(2))
+                        .sum::<f64>()
+                        .sqrt();
+                    if to_centre - radius > best {
+                        continue;
+                    }
+                    let d = point_triangle_distance(p, self.triangles[f as usize]);
+                    if d < best || (d == best && f < best_triangle) {
+                        best = d;
+                        best_triangle = f;
+                    }
+                }
+            };
+            let on_shell = |x: usize, a: usize| x + r == center[a] || x == center[a] + r;
+            for k in lo[2]..=hi[2] {
+                for j in lo[1]..=hi[1] {
+                    if on_shell(k, 2) || on_shell(j, 1) {
+                        for i in lo[0]..=hi[0] {
+                            visit(i, j, k);
+                        }
+                    } else {
+                        if center[0] >= r {
+                            visit(center[0] - r, j, k);
+                        }
+                        if r > 0 && center[0] + r < dims[0] {
+                            visit(center[0] + r, j, k);
+                        }
+                    }
+                }
+            }
+            // Nothing unvisited can be closer than the nearest face of the visited block on
+            // a side where the grid goes on.
+            let mut bound = f64::INFINITY;
+            for a in 0..3 {
+                if lo[a] > 0 {
+                    bound = bound.min(q[a] - (self.origin[a] + lo[a] as f64 * self.cell));
+                }
+                if hi[a] + 1 < dims[a] {
+                    bound = bound.min(self.origin[a] + (hi[a] + 1) as f64 * self.cell - q[a]);
+                }
+            }
+            if best <= bound {
+                break;
+            }
+        }
+        Some(Nearest {
+            distance: best,
+            triangle: best_triangle,
+        })
+    }
+
+    /// Distance from each point to the surface (mm), in parallel; infinite if it is empty.
+    pub fn distances(&self, points: &[[f32; 3]]) -> Vec<f64> {
+        points
+            .par_iter()
+            .map(|&p| self.nearest(p).map_or(f64::INFINITY, |n| n.distance))
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn closest_point_regions_by_hand() {
+        let t = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        assert_eq!(point_triangle_distance([0.25, 0.25, 2.0], t), 2.0);
+        assert_eq!(point_triangle_distance([-1.0, -1.0, 0.0], t), 2f64.sqrt());
+        assert_eq!(point_triangle_distance([0.5, -3.0, 4.0], t), 5.0);
+        assert!((point_triangle_distance([1.0, 1.0, 0.0], t) - 0.5f64.sqrt()).abs() < 1e-12);
+        // Collinear triangle: distance to the segment.
+        let line = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]];
+        assert!((point_triangle_distance([1.5, 1.0, 0.0], line) - 1.0).abs() < 1e-12);
+    }
+}

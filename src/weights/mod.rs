@@ -1,0 +1,64 @@
+//! Per-vertex weights in [0, 1] that scale each smoother's displacement (Moench 2010, Eq. 4-5):
+//! 0 keeps a vertex where it is, 1 lets it move as the smoother says.
+
+use thiserror::Error;
+
+/// One weight per vertex, each finite and in [0, 1].
+#[derive(Debug, Clone, PartialEq)]
+pub struct VertexWeights(Vec<f32>);
+
+/// Why a set of weights was rejected.
+#[derive(Debug, Clone, PartialEq, Error)]
+pub enum WeightsError {
+    #[error("{got} weights for a mesh with {expected} vertices")]
+    Count { expected: usize, got: usize },
+    #[error("weight of vertex {vertex} is {value}, outside [0, 1]")]
+    OutOfRange { vertex: usize, value: f32 },
+}
+
+impl VertexWeights {
+    /// Weight 1 everywhere: plain uniform smoothing.
+    pub fn uniform(n_vertices: usize) -> Self {
+        Self(vec![1.0; n_vertices])
+    }
+
+    /// Checks count and range.
+    pub fn new(values: Vec<f32>, n_vertices: usize) -> Result<Self, WeightsError> {
+        if values.len() != n_vertices {
+            return Err(WeightsError::Count {
+                expected: n_vertices,
+                got: values.len(),
+            });
+        }
+        if let Some(vertex) = values.iter().position(|w| !(0.0..=1.0).contains(w)) {
+            return Err(WeightsError::OutOfRange {
+                vertex,
+                value: values[vertex],
+            });
+        }
+        Ok(Self(values))
+    }
+
+    /// The weights, indexed by vertex.
+    pub fn as_slice(&self) -> &[f32] {
+        &self.0
+    }
+
+    /// The weights as a plain vector.
+    pub fn into_inner(self) -> Vec<f32> {
+        self.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn validates_count_and_range() {
+        assert!(VertexWeights::new(vec![0.0, 0.5, 1.0], 3).is_ok());
+        assert!(VertexWeights::new(vec![0.0, 0.5], 3).is_err());
+        assert!(VertexWeights::new(vec![0.0, 1.5, 1.0], 3).is_err());
+        assert!(VertexWeights::new(vec![0.0, f32::NAN, 1.0], 3).is_err());
+    }
+}
