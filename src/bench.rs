@@ -276,3 +276,79 @@ pub fn smooth(triangles: usize, iterations: usize, repeat: usize) -> SmoothBench
         hausdorff_queries_per_s: (2 * mesh.n_vertices()) as f64 / hausdorff_s,
     }
 }
+
+/// Results of `destair bench context`.
+#[derive(Debug, Serialize)]
+pub struct ContextBench {
+    pub n_vertices: usize,
+    pub n_triangles: usize,
+    pub threads: usize,
+    pub topology_s: f64,
+    pub stack_axis_s: f64,
+    pub staircase_weights_s: f64,
+    pub caps_s: f64,
+    /// Building the triangle grid over the reference (s).
+    pub grid_build_s: f64,
+    pub n_queries: usize,
+    /// Exact point-to-surface queries (s) and their rate.
+    pub queries_s: f64,
+    pub queries_per_s: f64,
+}
+
+/// Times context analysis on the `big` phantom of about `triangles` triangles, and exact
+/// distance queries for about as many points (face centroids moved 1.5 mm off the surface)
+/// against the same mesh as a reference.
+pub fn context(triangles: usize, repeat: usize) -> ContextBench {
+    use crate::analysis::{detect_caps, stack_axis, CapParams, StackAxisParams};
+    use crate::spatial::TriangleGrid;
+    use crate::weights::{staircase_weights, StaircaseParams};
+    let case = crate::phantom::big_case(triangles as u64, &Default::default());
+    let mesh = case
+        .meshes
+        .into_iter()
+        .next()
+        .map(|(_, m)| m)
+        .unwrap_or_default();
+    let (topology_s, topology) = best_of(repeat, || Topology::build(&mesh));
+    let (stack_axis_s, _) = best_of(repeat, || {
+        stack_axis(&mesh, &topology, &StackAxisParams::default())
+    });
+    let (staircase_weights_s, stairs) = best_of(repeat, || {
+        staircase_weights(
+            &mesh,
+            &topology,
+            [0.0, 0.0, 1.0],
+            &StaircaseParams::default(),
+        )
+    });
+    let reach: Vec<bool> = stairs.distance_mm.iter().map(|d| d.is_finite()).collect();
+    let (caps_s, _) = best_of(repeat, || {
+        detect_caps(&mesh, &topology, Some(&reach), &CapParams::default())
+    });
+    let (grid_build_s, grid) = best_of(repeat, || TriangleGrid::build(&mesh));
+    let p = mesh.positions();
+    let queries: Vec<[f32; 3]> = mesh
+        .triangles()
+        .iter()
+        .map(|t| {
+            let c: [f32; 3] = std::array::from_fn(|k| {
+                (p[t[0] as usize][k] + p[t[1] as usize][k] + p[t[2] as usize][k]) / 3.0
+            });
+            [c[0] + 1.5, c[1], c[2]]
+        })
+        .collect();
+    let (queries_s, _) = best_of(repeat, || grid.distances(&queries));
+    ContextBench {
+        n_vertices: mesh.n_vertices(),
+        n_triangles: mesh.n_triangles(),
+        threads: rayon::current_num_threads(),
+        topology_s,
+        stack_axis_s,
+        staircase_weights_s,
+        caps_s,
+        grid_build_s,
+        n_queries: queries.len(),
+        queries_s,
+        queries_per_s: queries.len() as f64 / queries_s,
+    }
+}

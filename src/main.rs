@@ -35,6 +35,14 @@ enum Command {
         /// How to read the file: mmap (local disks) or read (network filesystems).
         #[arg(long, value_enum, default_value_t = ModeArg::Mmap)]
         read_mode: ModeArg,
+        /// Also analyse context: stack axis, staircases, caps, distances, weights.
+        #[arg(long)]
+        context: bool,
+        /// Write the mesh with per-vertex `weight`, `staircase`, `cap` and distance properties (PLY).
+        #[arg(long)]
+        export: Option<PathBuf>,
+        #[command(flatten)]
+        ctx: ContextArgs,
     },
     /// Smooth one mesh with one of the papers' smoothers.
     Smooth {
@@ -75,6 +83,11 @@ enum Command {
         /// Add `weight` and `displacement` (mm) vertex properties to a PLY output.
         #[arg(long)]
         annotate: bool,
+        /// Weight by staircases (Moench): smooth artifacts, keep the rest.
+        #[arg(long)]
+        staircase: bool,
+        #[command(flatten)]
+        ctx: ContextArgs,
     },
     /// Compare a smoothed mesh with its original: distances, volume, curvature, displacement.
     Compare {
@@ -92,7 +105,8 @@ enum Command {
     /// Generate phantom cases: marching-cubes meshes of analytic shapes with real staircases.
     ///
     /// NAME is one of sphere-iso, sphere-aniso, sphere-aniso-1-16, -1-8, -1-4, -1-2, -top,
-    /// cap-cylinder, neck, aneurysm; `big N` (about N triangles); or `cohort` (--cases N).
+    /// sphere-smooth (and the same cut variants), cap-cylinder, neck, aneurysm; `big N`
+    /// (about N triangles); or `cohort` (--cases N).
     Phantom {
         /// Which phantom.
         name: String,
@@ -126,6 +140,16 @@ enum Command {
 
 #[derive(Subcommand)]
 enum BenchCommand {
+    /// Stack axis, staircase weights, caps, and exact distance queries per second.
+    Context {
+        /// Approximate number of triangles of the `big` phantom (and of query points).
+        #[arg(long, default_value_t = 1_000_000)]
+        triangles: usize,
+        #[arg(long, default_value_t = 3)]
+        repeat: usize,
+        #[arg(long)]
+        json: bool,
+    },
     /// Every smoother (seconds per run, vertex updates per second) and the Hausdorff metric.
     Smooth {
         /// Approximate number of triangles of the `big` phantom.
@@ -160,6 +184,157 @@ enum BenchCommand {
         #[arg(long)]
         json: bool,
     },
+}
+
+/// Context options shared by `inspect --context` and `smooth`.
+#[derive(clap::Args)]
+struct ContextArgs {
+    /// Stack axis: `auto` (estimated from the mesh) or X,Y,Z.
+    #[arg(long, default_value = "auto", value_parser = parse_axis)]
+    axis: AxisArg,
+    /// Orientation change above which a vertex is a staircase vertex.
+    #[arg(long, default_value_t = 0.7)]
+    tau: f32,
+    /// Reach of a staircase along the surface (mm).
+    #[arg(long, default_value_t = 3.0)]
+    tau_max: f32,
+    /// Weight floor for artifact-free areas (0 keeps them exactly in place).
+    #[arg(long, default_value_t = 0.1)]
+    beta_min: f32,
+    /// Detected caps: keep them exactly (preserve) or smooth them like the rest.
+    #[arg(long, value_enum, default_value_t = CapsArg::Preserve)]
+    caps: CapsArg,
+    /// Reference structures whose distance must be preserved (repeatable).
+    #[arg(long = "reference")]
+    references: Vec<PathBuf>,
+    /// linear | margin:MM | exp:K | ramp:D0,D1 (mm)
+    #[arg(long, default_value = "linear", value_parser = parse_scaling)]
+    distance_scaling: destair::weights::DistanceScaling,
+    /// How staircase and distance weights combine.
+    #[arg(long, value_enum, default_value_t = CombineArg::Product)]
+    combine: CombineArg,
+}
+
+#[derive(Clone, Copy)]
+enum AxisArg {
+    Auto,
+    Given([f32; 3]),
+}
+
+fn parse_axis(s: &str) -> Result<AxisArg, String> {
+    if s == "auto" {
+        return Ok(AxisArg::Auto);
+    }
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("expected `auto` or X,Y,Z, got {s:?}"))?;
+    match v.as_slice() {
+        [x, y, z] if v.iter().all(|c| c.is_finite()) && (x * x + y * y + z * z) > 0.0 => {
+            Ok(AxisArg::Given([*x, *y, *z]))
+        }
+        _ => Err(format!("expected `auto` or a non-zero X,Y,Z, got {s:?}")),
+    }
+}
+
+fn parse_scaling(s: &str) -> Result<destair::weights::DistanceScaling, String> {
+    use destair::weights::DistanceScaling;
+    let number = |x: &str| {
+        x.trim()
+            .parse::<f32>()
+            .ok()
+            .filter(|v| v.is_finite() && *v >= 0.0)
+    };
+    let bad = || format!("expected linear, margin:MM, exp:K or ramp:D0,D1, got {s:?}");
+    match s.split_once(':') {
+        None if s == "linear" => Ok(DistanceScaling::Linear),
+        Some(("margin", m)) => Ok(DistanceScaling::SafetyMargin {
+            margin_mm: number(m).ok_or_else(bad)?,
+        }),
+        Some(("exp", k)) => Ok(DistanceScaling::Exponential {
+            k: k.trim()
+                .parse::<f32>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(bad)?,
+        }),
+        Some(("ramp", r)) => {
+            let (a, b) = r.split_once(',').ok_or_else(bad)?;
+            let (d0_mm, d1_mm) = (number(a).ok_or_else(bad)?, number(b).ok_or_else(bad)?);
+            if d1_mm <= d0_mm {
+                return Err(format!("ramp needs D0 < D1, got {s:?}"));
+            }
+            Ok(DistanceScaling::Ramp { d0_mm, d1_mm })
+        }
+        _ => Err(bad()),
+    }
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum CapsArg {
+    Preserve,
+    Smooth,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum CombineArg {
+    Product,
+    Min,
+}
+
+impl ContextArgs {
+    /// The library parameters; `staircase` turns staircase weighting on.
+    fn params(&self, staircase: bool) -> destair::weights::ContextParams {
+        use destair::weights::{AxisChoice, CapPolicy, Combine, ContextParams, StaircaseParams};
+        ContextParams {
+            staircase,
+            axis: match self.axis {
+                AxisArg::Auto => AxisChoice::Auto,
+                AxisArg::Given(a) => AxisChoice::Given(a),
+            },
+            staircase_params: StaircaseParams {
+                tau: self.tau,
+                tau_max_mm: self.tau_max,
+                beta_min: self.beta_min,
+            },
+            caps: match self.caps {
+                CapsArg::Preserve => CapPolicy::Preserve,
+                CapsArg::Smooth => CapPolicy::Smooth,
+            },
+            cap_params: Default::default(),
+            distance_scaling: self.distance_scaling,
+            combine: match self.combine {
+                CombineArg::Product => Combine::Product,
+                CombineArg::Min => Combine::Min,
+            },
+        }
+    }
+
+    /// Reads the reference meshes and indexes their triangles.
+    fn reference_grids(&self) -> anyhow::Result<Vec<destair::spatial::TriangleGrid>> {
+        self.references
+            .iter()
+            .map(|p| {
+                let r = read_mesh(p, &ReadOptions::default()).map_err(InputError)?;
+                Ok(destair::spatial::TriangleGrid::build(&r.mesh))
+            })
+            .collect()
+    }
+
+    /// Validates value ranges clap cannot express.
+    fn check(&self) -> Result<(), UsageError> {
+        let valid = (0.0..=1.0).contains(&self.tau)
+            && (0.0..=1.0).contains(&self.beta_min)
+            && self.tau_max.is_finite()
+            && self.tau_max > 0.0;
+        if !valid {
+            return Err(UsageError(
+                "--tau and --beta-min must lie in [0, 1] and --tau-max above 0".into(),
+            ));
+        }
+        Ok(())
+    }
 }
 
 #[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -261,7 +436,11 @@ fn run(command: Command) -> anyhow::Result<()> {
             mesh,
             json,
             read_mode,
+            context,
+            export,
+            ctx,
         } => {
+            ctx.check()?;
             let options = ReadOptions {
                 mode: match read_mode {
                     ModeArg::Mmap => ReadMode::Mmap,
@@ -270,11 +449,69 @@ fn run(command: Command) -> anyhow::Result<()> {
                 ..Default::default()
             };
             let loaded = read_mesh(&mesh, &options).map_err(InputError)?;
-            let report = destair::report::inspect::inspect(&mesh, &loaded);
+            let topology = destair::Topology::build(&loaded.mesh);
+            let report = destair::report::inspect::inspect(&mesh, &loaded, &topology);
+            let analysis = if context || export.is_some() {
+                let grids = ctx.reference_grids()?;
+                let refs: Vec<&destair::spatial::TriangleGrid> = grids.iter().collect();
+                Some(destair::weights::context_weights(
+                    &loaded.mesh,
+                    &topology,
+                    &ctx.params(true),
+                    &refs,
+                ))
+            } else {
+                None
+            };
+            let summary = analysis
+                .as_ref()
+                .map(|a| destair::report::inspect::context_summary(a, loaded.mesh.n_vertices()));
             if json {
-                println!("{}", serde_json::to_string_pretty(&report)?);
+                let mut value = serde_json::to_value(&report)?;
+                if let (Some(s), Some(obj)) = (&summary, value.as_object_mut()) {
+                    obj.insert("context".into(), serde_json::to_value(s)?);
+                }
+                println!("{}", serde_json::to_string_pretty(&value)?);
             } else {
                 print!("{}", report.to_text());
+                if let Some(s) = &summary {
+                    print!("{}", s.to_text());
+                }
+            }
+            if let (Some(path), Some(a)) = (export, &analysis) {
+                let n = loaded.mesh.n_vertices();
+                let flag = |on: &dyn Fn(usize) -> bool| {
+                    (0..n)
+                        .map(|v| if on(v) { 1.0 } else { 0.0 })
+                        .collect::<Vec<f32>>()
+                };
+                let staircase = flag(&|v| a.staircase.as_ref().is_some_and(|s| s.is_staircase[v]));
+                let caps = a.caps.cap_vertices(n);
+                let cap = flag(&|v| caps[v]);
+                // -1 where no staircase is within reach.
+                let stair_distance: Vec<f32> = (0..n)
+                    .map(|v| {
+                        a.staircase.as_ref().map_or(-1.0, |s| {
+                            if s.distance_mm[v].is_finite() {
+                                s.distance_mm[v]
+                            } else {
+                                -1.0
+                            }
+                        })
+                    })
+                    .collect();
+                let mut props: Vec<(&str, &[f32])> = vec![
+                    ("weight", a.weights.as_slice()),
+                    ("staircase", &staircase),
+                    ("cap", &cap),
+                    ("staircase_distance", &stair_distance),
+                ];
+                let reference: Vec<f32>;
+                if let Some(d) = &a.reference_distance_mm {
+                    reference = d.iter().map(|&x| x as f32).collect();
+                    props.push(("reference_distance", &reference));
+                }
+                destair::io::ply::write_ply(&path, &loaded.mesh, &loaded.meta, &props)?;
             }
         }
         Command::Smooth {
@@ -291,8 +528,11 @@ fn run(command: Command) -> anyhow::Result<()> {
             weights,
             move_boundary,
             annotate,
+            staircase,
+            ctx,
         } => {
             use destair::smooth::{boundary_vertices, smooth, Method};
+            ctx.check()?;
             let loaded = read_mesh(&input, &ReadOptions::default()).map_err(InputError)?;
             let mesh = &loaded.mesh;
             let topology = destair::Topology::build(mesh);
@@ -343,7 +583,22 @@ fn run(command: Command) -> anyhow::Result<()> {
                 },
             };
             let iterations = iterations.unwrap_or(if method.is_relaxation() { 1000 } else { 20 });
+            let context_on = staircase || !ctx.references.is_empty();
             let weights = match weights {
+                None if context_on => {
+                    let grids = ctx.reference_grids()?;
+                    let refs: Vec<&destair::spatial::TriangleGrid> = grids.iter().collect();
+                    let analysis = destair::weights::context_weights(
+                        mesh,
+                        &topology,
+                        &ctx.params(staircase),
+                        &refs,
+                    );
+                    let summary =
+                        destair::report::inspect::context_summary(&analysis, mesh.n_vertices());
+                    eprint!("{}", summary.to_text());
+                    analysis.weights
+                }
                 None => destair::weights::VertexWeights::uniform(mesh.n_vertices()),
                 Some(path) => {
                     let options = ReadOptions {
@@ -477,6 +732,7 @@ fn run(command: Command) -> anyhow::Result<()> {
             };
             if !["big", "cohort"].contains(&name.as_str())
                 && !destair::phantom::cases::CASE_NAMES.contains(&name.as_str())
+                && !destair::phantom::cases::SMOOTH_CASE_NAMES.contains(&name.as_str())
             {
                 return Err(UsageError(
                     destair::phantom::cases::PhantomError::UnknownName(name).to_string(),
@@ -514,6 +770,35 @@ fn run(command: Command) -> anyhow::Result<()> {
                 }
             }
             eprintln!("generated in {:.2} s", started.elapsed().as_secs_f64());
+        }
+        Command::Bench {
+            what:
+                BenchCommand::Context {
+                    triangles,
+                    repeat,
+                    json,
+                },
+        } => {
+            let r = destair::bench::context(triangles, repeat);
+            if json {
+                println!("{}", serde_json::to_string_pretty(&r)?);
+            } else {
+                println!(
+                    "bench context: {} vertices, {} triangles, {} threads, best of {repeat}",
+                    r.n_vertices, r.n_triangles, r.threads
+                );
+                println!("  topology           {:.4} s", r.topology_s);
+                println!("  stack axis         {:.4} s", r.stack_axis_s);
+                println!("  staircase weights  {:.4} s", r.staircase_weights_s);
+                println!("  caps               {:.4} s", r.caps_s);
+                println!("  triangle grid      {:.4} s", r.grid_build_s);
+                println!(
+                    "  {} exact queries  {:.4} s  ({:.2} M queries/s)",
+                    r.n_queries,
+                    r.queries_s,
+                    r.queries_per_s / 1e6
+                );
+            }
         }
         Command::Bench {
             what:

@@ -291,3 +291,101 @@ fn smooth_then_compare() {
     let smoothed = destair::io::read_mesh(&out, &Default::default()).unwrap();
     assert_eq!(smoothed.mesh.positions(), loaded.mesh.positions());
 }
+
+#[test]
+fn inspect_context_and_context_aware_smoothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let an = dir.path().join("an");
+    assert!(
+        destair(&["phantom", "aneurysm", "--out", an.to_str().unwrap()])
+            .status
+            .success()
+    );
+    let mesh = an.join("aneurysm.ply");
+    let export = dir.path().join("weights.ply");
+    let out = destair(&[
+        "inspect",
+        mesh.to_str().unwrap(),
+        "--context",
+        "--json",
+        "--export",
+        export.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["context"]["axis_source"], "estimated");
+    assert_eq!(json["context"]["caps"].as_array().unwrap().len(), 3);
+    assert!(json["context"]["n_staircase_vertices"].as_u64().unwrap() > 0);
+    let options = destair::io::ReadOptions {
+        keep_vertex_properties: true,
+        ..Default::default()
+    };
+    let w = destair::io::read_mesh(&export, &options).unwrap();
+    let names: Vec<&str> = w
+        .vertex_properties
+        .iter()
+        .map(|p| p.name.as_str())
+        .collect();
+    assert_eq!(names, ["weight", "staircase", "cap", "staircase_distance"]);
+    // Cap vertices have weight 0 (preserved).
+    let (weight, cap) = (
+        &w.vertex_properties[0].values,
+        &w.vertex_properties[2].values,
+    );
+    assert!(cap
+        .iter()
+        .zip(weight)
+        .all(|(&c, &wv)| c == 0.0 || wv == 0.0));
+
+    // Given axis, staircase smoothing: caps stay exactly in place.
+    let smoothed = dir.path().join("s.ply");
+    let run = destair(&[
+        "smooth",
+        mesh.to_str().unwrap(),
+        "-o",
+        smoothed.to_str().unwrap(),
+        "--method",
+        "hc",
+        "--staircase",
+        "--axis",
+        "0,0,1",
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(String::from_utf8_lossy(&run.stderr).contains("stack axis (given)"));
+    let a = destair::io::read_mesh(&mesh, &Default::default())
+        .unwrap()
+        .mesh;
+    let b = destair::io::read_mesh(&smoothed, &Default::default())
+        .unwrap()
+        .mesh;
+    for (v, &c) in cap.iter().enumerate() {
+        if c == 1.0 {
+            assert_eq!(a.positions()[v], b.positions()[v]);
+        }
+    }
+    assert_ne!(a.positions(), b.positions());
+
+    // Bad context options are usage errors.
+    for bad in [
+        ["--axis", "0,0,0"],
+        ["--distance-scaling", "ramp:5,1"],
+        ["--tau", "3"],
+    ] {
+        let run = destair(&[
+            "inspect",
+            mesh.to_str().unwrap(),
+            "--context",
+            bad[0],
+            bad[1],
+        ]);
+        assert_eq!(run.status.code(), Some(2), "{bad:?}");
+    }
+}

@@ -86,7 +86,9 @@ fn check(bytes: &[u8], ext: &str) -> Result<LoadedMesh, ReadErrorKind> {
             loaded.mesh.triangles().to_vec(),
         )
         .expect("decoded mesh fails validation");
-        let report = destair::report::inspect::inspect(std::path::Path::new("x"), loaded);
+        let topology = destair::Topology::build(&loaded.mesh);
+        let report =
+            destair::report::inspect::inspect(std::path::Path::new("x"), loaded, &topology);
         assert!(report.area_mm2.is_finite());
     }
     result

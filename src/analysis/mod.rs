@@ -1,5 +1,9 @@
 //! What a mesh tells about the volume it came from (Bade 2007, Moench 2012).
 
+pub mod caps;
+pub mod stack_axis;
 pub mod voxel_size;
 
+pub use caps::{detect_caps, Cap, CapDetection, CapParams};
+pub use stack_axis::{stack_axis, StackAxis, StackAxisParams};
 pub use voxel_size::{voxel_size, AxisSpacing, VoxelSizeEstimate};

@@ -27,6 +27,17 @@ pub const CASE_NAMES: [&str; 10] = [
     "aneurysm",
 ];
 
+/// Smooth-surface variants (marching cubes on a smooth field rather than a binary mask): the
+/// paper's Gaussian-filtered sphere, where the only staircase is the removed part of the top slice.
+pub const SMOOTH_CASE_NAMES: [&str; 6] = [
+    "sphere-smooth",
+    "sphere-smooth-1-16",
+    "sphere-smooth-1-8",
+    "sphere-smooth-1-4",
+    "sphere-smooth-1-2",
+    "sphere-smooth-top",
+];
+
 /// Options shared by all phantoms.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct PhantomOptions {
@@ -75,7 +86,7 @@ pub struct PhantomCase {
 /// Why a phantom could not be made or written.
 #[derive(Debug, Error)]
 pub enum PhantomError {
-    #[error("unknown phantom {0:?}; known: {known}, big, cohort", known = CASE_NAMES.join(", "))]
+    #[error("unknown phantom {0:?}; known: {known}, {smooth}, big, cohort", known = CASE_NAMES.join(", "), smooth = SMOOTH_CASE_NAMES.join(", "))]
     UnknownName(String),
     #[error("{0}")]
     Write(#[from] WriteError),
@@ -98,6 +109,9 @@ fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 /// Generates a named case (see [`CASE_NAMES`]).
 pub fn named_case(name: &str, options: &PhantomOptions) -> Result<PhantomCase, PhantomError> {
     let mut rng = fastrand::Rng::with_seed(options.seed);
+    if let Some(fraction) = name.strip_prefix("sphere-smooth").and_then(cut_fraction) {
+        return Ok(smooth_sphere(name, fraction, &mut rng, options));
+    }
     let (description, volume, structures) = match name {
         "sphere-iso" => {
             let spacing = [1.0; 3];
@@ -117,14 +131,8 @@ pub fn named_case(name: &str, options: &PhantomOptions) -> Result<PhantomCase, P
             )
         }
         n if n.starts_with("sphere-aniso") => {
-            let fraction = match n {
-                "sphere-aniso" => 0.0,
-                "sphere-aniso-1-16" => 1.0 / 16.0,
-                "sphere-aniso-1-8" => 1.0 / 8.0,
-                "sphere-aniso-1-4" => 0.25,
-                "sphere-aniso-1-2" => 0.5,
-                "sphere-aniso-top" => 1.0,
-                other => return Err(PhantomError::UnknownName(other.to_string())),
+            let Some(fraction) = cut_fraction(&n["sphere-aniso".len()..]) else {
+                return Err(PhantomError::UnknownName(n.to_string()));
             };
             let spacing = [1.0, 1.0, 3.0];
             let mut v = LabelVolume::new([128, 128, 43], spacing, [0.0; 3]);
@@ -141,17 +149,19 @@ pub fn named_case(name: &str, options: &PhantomOptions) -> Result<PhantomCase, P
         }
         "cap-cylinder" => {
             let spacing = [1.0, 1.0, 2.0];
-            let mut v = LabelVolume::new([72, 56, 36], spacing, [0.0; 3]);
+            // Large enough (in voxels) that 50 Laplace iterations round the rims but leave the
+            // caps flat, as in the paper's experiment.
+            let mut v = LabelVolume::new([116, 84, 54], spacing, [0.0; 3]);
             let j = jitter(&mut rng, spacing);
             let cylinder = Shape::Cylinder {
-                start: add([26.0, 28.0, 12.0], j),
-                end: add([26.0, 28.0, 56.0], j),
-                radius: 13.0,
+                start: add([38.0, 42.0, 12.0], j),
+                end: add([38.0, 42.0, 92.0], j),
+                radius: 26.0,
             };
             let cuboid = Shape::Cuboid {
-                center: add([46.0, 28.0, 34.0], j),
-                half_extent: [12.0, 9.0, 15.0],
-                rotation_deg: [15.0, 25.0, 0.0],
+                center: add([76.0, 42.0, 52.0], j),
+                half_extent: [24.0, 18.0, 16.0],
+                rotation_deg: [8.0, 14.0, 0.0],
             };
             v.paint(&Shape::Union(vec![cylinder, cuboid]), 1);
             ("cylinder with flat caps merged with a tilted cuboid on a 1 x 1 x 2 mm grid (Moench 2012, §4.3)", v, vec![("cap-cylinder", 1)])
@@ -167,6 +177,69 @@ pub fn named_case(name: &str, options: &PhantomOptions) -> Result<PhantomCase, P
         other => return Err(PhantomError::UnknownName(other.to_string())),
     };
     Ok(finish(name, description, volume, &structures, options))
+}
+
+/// The share of the top slice a name suffix removes ("" none, "-1-8" an eighth, "-top" all).
+fn cut_fraction(suffix: &str) -> Option<f64> {
+    Some(match suffix {
+        "" => 0.0,
+        "-1-16" => 1.0 / 16.0,
+        "-1-8" => 1.0 / 8.0,
+        "-1-4" => 0.25,
+        "-1-2" => 0.5,
+        "-top" => 1.0,
+        _ => return None,
+    })
+}
+
+/// The sphere of `sphere-aniso`, but surfaced from its signed distance field as marching cubes
+/// does on a smoothed image (Moench 2012, §4.1): smooth except where part of the top slice was
+/// removed, which leaves a staircase.
+fn smooth_sphere(
+    name: &str,
+    fraction: f64,
+    rng: &mut fastrand::Rng,
+    options: &PhantomOptions,
+) -> PhantomCase {
+    let spacing = [1.0, 1.0, 3.0];
+    let mut v = LabelVolume::new([128, 128, 43], spacing, [0.0; 3]);
+    let center = add([64.0, 64.0, 64.0], jitter(rng, spacing));
+    let radius = 50.0;
+    v.paint(&Shape::Sphere { center, radius }, 1);
+    remove_top_sector(&mut v, 1, center, fraction);
+    let [nx, ny, nz] = v.dims;
+    let mut field = vec![0.0f32; nx * ny * nz];
+    for k in 0..nz {
+        for j in 0..ny {
+            for i in 0..nx {
+                let p = v.center(i, j, k);
+                let d = (0..3)
+                    .map(|a| (p[a] - center[a]).powi(2))
+                    .sum::<f64>()
+                    .sqrt()
+                    - radius;
+                let idx = v.index(i, j, k);
+                // Removed voxels are outside by half a slice, whatever the sphere says.
+                field[idx] = if v.labels[idx] == 1 {
+                    d.min(-1e-3) as f32
+                } else {
+                    d.max(0.5 * spacing[2]) as f32
+                };
+            }
+        }
+    }
+    let mut case = finish(name, "sphere of radius 50 mm on a 1 x 1 x 3 mm grid surfaced from its distance field (smooth, as after Gaussian filtering), with part of its top slice removed (Moench 2012, Tables 3 and 5)", v.clone(), &[], options);
+    let mut mesh = super::marching_cubes::extract_surface_interpolated(&v, 1, options.ends, &field);
+    rotate(&mut mesh, &v, options);
+    case.info.structures.push(StructureInfo {
+        name: "sphere".into(),
+        label: 1,
+        n_voxels: v.count(1),
+        n_vertices: mesh.n_vertices(),
+        n_triangles: mesh.n_triangles(),
+    });
+    case.meshes.push(("sphere".into(), mesh));
+    case
 }
 
 /// Removes the sector of the sphere's topmost slice whose angle about the centre is below
@@ -391,6 +464,26 @@ pub fn big_case(n_triangles: u64, options: &PhantomOptions) -> PhantomCase {
 }
 
 /// Extracts each structure, applies the rotation and records what was made.
+/// Rotates a finished mesh about the volume centre (x first, then y).
+fn rotate(mesh: &mut Mesh, volume: &LabelVolume, options: &PhantomOptions) {
+    if options.rotate_x_deg == 0.0 && options.rotate_y_deg == 0.0 {
+        return;
+    }
+    let rotation = rotation_matrix([options.rotate_x_deg, options.rotate_y_deg, 0.0]);
+    let center: [f64; 3] = std::array::from_fn(|k| {
+        volume.origin[k] + 0.5 * (volume.dims[k] as f64 - 1.0) * volume.spacing[k]
+    });
+    for p in mesh.positions_mut() {
+        let d = [
+            p[0] as f64 - center[0],
+            p[1] as f64 - center[1],
+            p[2] as f64 - center[2],
+        ];
+        let r = apply(&rotation, d);
+        *p = std::array::from_fn(|k| (center[k] + r[k]) as f32);
+    }
+}
+
 fn finish(
     name: &str,
     description: &str,
@@ -398,26 +491,11 @@ fn finish(
     structures: &[(&str, u16)],
     options: &PhantomOptions,
 ) -> PhantomCase {
-    let rotation = rotation_matrix([options.rotate_x_deg, options.rotate_y_deg, 0.0]);
-    let center: [f64; 3] = std::array::from_fn(|k| {
-        volume.origin[k] + 0.5 * (volume.dims[k] as f64 - 1.0) * volume.spacing[k]
-    });
-    let rotated = options.rotate_x_deg != 0.0 || options.rotate_y_deg != 0.0;
     let mut meshes = Vec::new();
     let mut infos = Vec::new();
     for &(structure, label) in structures {
         let mut mesh = extract_surface(&volume, label, options.ends);
-        if rotated {
-            for p in mesh.positions_mut() {
-                let d = [
-                    p[0] as f64 - center[0],
-                    p[1] as f64 - center[1],
-                    p[2] as f64 - center[2],
-                ];
-                let r = apply(&rotation, d);
-                *p = std::array::from_fn(|k| (center[k] + r[k]) as f32);
-            }
-        }
+        rotate(&mut mesh, &volume, options);
         infos.push(StructureInfo {
             name: structure.to_string(),
             label,

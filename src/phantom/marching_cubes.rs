@@ -245,6 +245,22 @@ fn in_runs(runs: &[(u32, u32)], x: u32) -> bool {
 /// Work is proportional to the surface, not the volume: each row of the label is reduced to
 /// runs, and only cells where the four rows around a cell row differ or change are visited.
 pub fn extract_surface(volume: &LabelVolume, label: u16, ends: BorderEnds) -> Mesh {
+    extract(volume, label, ends, None)
+}
+
+/// Like [`extract_surface`], but each vertex is placed where a scalar field (one value per
+/// voxel, negative inside the label, positive outside) crosses zero along its grid edge, as
+/// marching cubes does on a smooth (e.g. Gaussian-filtered) image. The topology is the same.
+pub fn extract_surface_interpolated(
+    volume: &LabelVolume,
+    label: u16,
+    ends: BorderEnds,
+    field: &[f32],
+) -> Mesh {
+    extract(volume, label, ends, Some(field))
+}
+
+fn extract(volume: &LabelVolume, label: u16, ends: BorderEnds, field: Option<&[f32]>) -> Mesh {
     let table = case_table();
     let [nx, ny, nz] = volume.dims;
     // Padded grid: point P = voxel index + 1, with a background layer all round.
@@ -347,9 +363,10 @@ pub fn extract_surface(volume: &LabelVolume, label: u16, ends: BorderEnds) -> Me
                 (p / px as u64) % py as u64,
                 p / (px * py) as u64,
             ];
+            let t = field.map_or(0.5, |f| crossing(volume, f, index, axis));
             std::array::from_fn(|a| {
-                let half = if a == axis { 0.5 } else { 0.0 };
-                (volume.origin[a] + (index[a] as f64 - 1.0 + half) * volume.spacing[a]) as f32
+                let step = if a == axis { t } else { 0.0 };
+                (volume.origin[a] + (index[a] as f64 - 1.0 + step) * volume.spacing[a]) as f32
             })
         })
         .collect();
@@ -361,6 +378,27 @@ pub fn extract_surface(volume: &LabelVolume, label: u16, ends: BorderEnds) -> Me
         })
         .collect();
     Mesh::from_checked_parts(positions, triangles)
+}
+
+/// Where along the grid edge from padded point `index` in direction `axis` the field crosses
+/// zero, as a fraction in [0.02, 0.98] (0.5 if the field does not change sign there).
+fn crossing(volume: &LabelVolume, field: &[f32], index: [u64; 3], axis: usize) -> f64 {
+    // The padding layer counts as outside by half a voxel.
+    let value = |q: [u64; 3]| -> f64 {
+        if (0..3).all(|a| q[a] >= 1 && q[a] as usize <= volume.dims[a]) {
+            field[volume.index(q[0] as usize - 1, q[1] as usize - 1, q[2] as usize - 1)] as f64
+        } else {
+            0.5 * volume.spacing[axis]
+        }
+    };
+    let mut upper = index;
+    upper[axis] += 1;
+    let (fa, fb) = (value(index), value(upper));
+    if (fa < 0.0) != (fb < 0.0) && fa != fb {
+        (fa / (fa - fb)).clamp(0.02, 0.98)
+    } else {
+        0.5
+    }
 }
 
 #[cfg(test)]

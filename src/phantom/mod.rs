@@ -4,7 +4,7 @@
 pub mod marching_cubes;
 pub mod volume;
 
-pub use marching_cubes::{extract_surface, BorderEnds};
+pub use marching_cubes::{extract_surface, extract_surface_interpolated, BorderEnds};
 pub use volume::{LabelVolume, Shape};
 pub mod cases;
 

@@ -5,6 +5,7 @@ use crate::io::{LoadedMesh, SourceFormat};
 use crate::mesh::geometry::{area, bounding_box, signed_volume, BoundingBox};
 use crate::mesh::Topology;
 use crate::metrics::average_normal_curvature;
+use crate::weights::Context;
 use serde::Serialize;
 use std::fmt::Write;
 use std::path::Path;
@@ -55,10 +56,147 @@ pub struct InspectReport {
     pub warnings: Vec<String>,
 }
 
+/// One detected cap in the report.
+#[derive(Debug, Clone, Serialize)]
+pub struct CapSummary {
+    pub n_faces: usize,
+    pub area_mm2: f64,
+    pub normal: [f32; 3],
+}
+
+/// Summary statistics of per-vertex weights.
+#[derive(Debug, Clone, Serialize)]
+pub struct WeightStats {
+    pub min: f32,
+    pub max: f32,
+    pub mean: f64,
+    /// Vertices with weight 0 (they will not move).
+    pub n_zero: usize,
+    /// Vertices with weight 1.
+    pub n_one: usize,
+}
+
+/// The context analysis (`inspect --context`): axis, staircases, caps, weights.
+#[derive(Debug, Clone, Serialize)]
+pub struct ContextSummary {
+    /// The stack axis used (unit), if any.
+    pub axis: Option<[f32; 3]>,
+    /// "given", "estimated", "too_weak" (no staircases found) or "off".
+    pub axis_source: String,
+    /// Share of the surface area supporting the estimated axis.
+    pub axis_confidence: Option<f64>,
+    pub n_staircase_vertices: usize,
+    /// Staircase vertices as a share of all vertices.
+    pub staircase_share: f64,
+    pub n_flat_regions: usize,
+    pub n_terraces: usize,
+    pub caps: Vec<CapSummary>,
+    /// Smallest distance to the reference structures (mm), when references were given.
+    pub reference_distance_min_mm: Option<f64>,
+    pub weights: WeightStats,
+}
+
+/// Summarises a context analysis.
+pub fn context_summary(ctx: &Context, n_vertices: usize) -> ContextSummary {
+    use crate::analysis::StackAxis;
+    let (axis_source, axis_confidence) = match ctx.estimated_axis {
+        Some(StackAxis::Found { confidence, .. }) => ("estimated", Some(confidence)),
+        Some(StackAxis::TooWeak { best_share }) => ("too_weak", Some(best_share)),
+        None if ctx.axis.is_some() => ("given", None),
+        None => ("off", None),
+    };
+    let n_staircase_vertices = ctx.staircase.as_ref().map_or(0, |s| s.n_staircase());
+    let w = ctx.weights.as_slice();
+    let weights = WeightStats {
+        min: w.iter().copied().fold(f32::INFINITY, f32::min),
+        max: w.iter().copied().fold(f32::NEG_INFINITY, f32::max),
+        mean: crate::parallel::deterministic_sum(w.len(), |i| w[i] as f64) / w.len().max(1) as f64,
+        n_zero: w.iter().filter(|&&x| x == 0.0).count(),
+        n_one: w.iter().filter(|&&x| x == 1.0).count(),
+    };
+    ContextSummary {
+        axis: ctx.axis,
+        axis_source: axis_source.to_string(),
+        axis_confidence,
+        n_staircase_vertices,
+        staircase_share: n_staircase_vertices as f64 / n_vertices.max(1) as f64,
+        n_flat_regions: ctx.caps.n_regions,
+        n_terraces: ctx.caps.n_terraces,
+        caps: ctx
+            .caps
+            .caps
+            .iter()
+            .map(|c| CapSummary {
+                n_faces: c.faces.len(),
+                area_mm2: c.area_mm2,
+                normal: c.normal,
+            })
+            .collect(),
+        reference_distance_min_mm: ctx
+            .reference_distance_mm
+            .as_ref()
+            .map(|d| d.iter().copied().fold(f64::INFINITY, f64::min)),
+        weights,
+    }
+}
+
+impl ContextSummary {
+    /// The summary as human-readable text.
+    pub fn to_text(&self) -> String {
+        let mut s = String::from("context\n");
+        match (self.axis, self.axis_source.as_str()) {
+            (Some(a), src) => {
+                let conf = self.axis_confidence.map_or(String::new(), |c| {
+                    format!(", {:.2} % of the area supports it", 100.0 * c)
+                });
+                let _ = writeln!(
+                    s,
+                    "  stack axis ({src}) ({:.4}, {:.4}, {:.4}){conf}",
+                    a[0], a[1], a[2]
+                );
+            }
+            (None, "too_weak") => {
+                let _ = writeln!(s, "  stack axis: no staircases found (best direction has {:.2} % of the area; too weak to call an axis)", 100.0 * self.axis_confidence.unwrap_or(0.0));
+            }
+            (None, _) => {
+                let _ = writeln!(s, "  stack axis: not used");
+            }
+        }
+        let _ = writeln!(
+            s,
+            "  staircase vertices {} ({:.2} %)",
+            self.n_staircase_vertices,
+            100.0 * self.staircase_share
+        );
+        let _ = writeln!(
+            s,
+            "  flat regions {} (terraces {}), caps {}",
+            self.n_flat_regions,
+            self.n_terraces,
+            self.caps.len()
+        );
+        for c in &self.caps {
+            let _ = writeln!(
+                s,
+                "    cap: {} faces, {:.2} mm², normal ({:.3}, {:.3}, {:.3})",
+                c.n_faces, c.area_mm2, c.normal[0], c.normal[1], c.normal[2]
+            );
+        }
+        if let Some(d) = self.reference_distance_min_mm {
+            let _ = writeln!(
+                s,
+                "  distance to references: {d:.4} mm at the closest vertex"
+            );
+        }
+        let w = &self.weights;
+        let _ = writeln!(s, "  weights min {:.3} max {:.3} mean {:.3}; {} vertices fixed (0), {} fully smoothed (1)", w.min, w.max, w.mean, w.n_zero, w.n_one);
+        s
+    }
+}
+
 /// Builds the inspect report for a loaded mesh.
-pub fn inspect(path: &Path, loaded: &LoadedMesh) -> InspectReport {
+pub fn inspect(path: &Path, loaded: &LoadedMesh, topology: &Topology) -> InspectReport {
     let mesh = &loaded.mesh;
-    let topology = Topology::build(mesh);
     let p = mesh.positions();
     let loops = topology.boundary_loops();
     let boundary_loops = loops
@@ -105,8 +243,8 @@ pub fn inspect(path: &Path, loaded: &LoadedMesh) -> InspectReport {
         euler_characteristic: topology.euler_characteristic(),
         n_unreferenced_vertices: topology.unreferenced_vertices().len(),
         n_degenerate_triangles: topology.degenerate_triangles().len(),
-        average_normal_curvature_deg: average_normal_curvature(mesh, &topology),
-        voxel_size: voxel_size(mesh, &topology),
+        average_normal_curvature_deg: average_normal_curvature(mesh, topology),
+        voxel_size: voxel_size(mesh, topology),
         comments: loaded.meta.comments.clone(),
         warnings: loaded.warnings.clone(),
     }

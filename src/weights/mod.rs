@@ -1,11 +1,28 @@
 //! Per-vertex weights in [0, 1] that scale each smoother's displacement (Moench 2010, Eq. 4-5):
 //! 0 keeps a vertex where it is, 1 lets it move as the smoother says.
 
+pub mod context;
+pub mod distance;
+pub mod staircase;
+
+pub use context::{context_weights, AxisChoice, CapPolicy, Context, ContextParams};
+pub use distance::{distance_weights, reference_distances, DistanceScaling};
+pub use staircase::{staircase_weights, StaircaseParams, StaircaseWeights};
+
 use thiserror::Error;
 
 /// One weight per vertex, each finite and in [0, 1].
 #[derive(Debug, Clone, PartialEq)]
 pub struct VertexWeights(Vec<f32>);
+
+/// How two weightings are combined (Moench: staircase and distance weights multiply).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Combine {
+    #[default]
+    Product,
+    Min,
+}
 
 /// Why a set of weights was rejected.
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -42,6 +59,29 @@ impl VertexWeights {
     /// The weights, indexed by vertex.
     pub fn as_slice(&self) -> &[f32] {
         &self.0
+    }
+
+    /// Combines two weightings vertex by vertex.
+    pub fn combine(&self, other: &VertexWeights, how: Combine) -> VertexWeights {
+        let values = self
+            .0
+            .iter()
+            .zip(&other.0)
+            .map(|(&a, &b)| match how {
+                Combine::Product => a * b,
+                Combine::Min => a.min(b),
+            })
+            .collect();
+        VertexWeights(values)
+    }
+
+    /// Sets the weight of the given vertices to 0 (e.g. preserved caps).
+    pub fn zero(&mut self, vertices: impl IntoIterator<Item = u32>) {
+        for v in vertices {
+            if let Some(w) = self.0.get_mut(v as usize) {
+                *w = 0.0;
+            }
+        }
     }
 
     /// The weights as a plain vector.

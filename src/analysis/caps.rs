@@ -1,0 +1,429 @@
+//! Cap detection (Moench 2012, §3.3, Algorithm 3.1): flat regions where a structure was clipped
+//! (vessel inlets and outlets, volume-of-interest borders), told apart from staircase terraces
+//! by how the surface leaves them: around a cap it turns the same way everywhere, around a
+//! terrace it goes up on one side and down on the other.
+//!
+//! Flat faces (all three vertices with normal curvature <= 5 degrees) form connected regions;
+//! regions under 10 faces are dropped; the rest grow over neighbours of nearly the same
+//! orientation; then each region's border vertices are checked for the sign of the largest
+//! offset of their outside neighbours along the region normal: one direction (up to a small
+//! minority, for smoothed meshes) makes a cap. That test alone also accepts every flat facet of
+//! a convex surface, so two checks go beyond the paper: following the surface outwards from the
+//! border (up to half the region's width) it must turn sharply, as the wall at a cut
+//! does (75 degrees or more); and, when staircase reach is known, most of the border must lie
+//! within reach of a staircase, since a cap only matters where staircase smoothing would
+//! otherwise reach it (§4.3).
+
+use crate::mesh::geometry::{face_normals, triangle_area_vector};
+use crate::mesh::{Mesh, Topology};
+use crate::metrics::vertex_normal_curvature;
+use serde::Serialize;
+use std::collections::VecDeque;
+
+/// Parameters of cap detection.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct CapParams {
+    /// Largest vertex normal curvature of a flat face (degrees; paper: 5).
+    pub flat_deg: f32,
+    /// Smallest flat region considered (faces; paper: 10).
+    pub min_faces: usize,
+    /// Growth: largest angle between a face and the region face it is reached from (degrees).
+    pub grow_step_deg: f32,
+    /// Growth: largest angle between a face and the region's initial mean normal (degrees).
+    pub grow_total_deg: f32,
+    /// How far beyond its border the surface is followed to see it turn, as a share of the
+    /// region's width (its smallest extent within its plane).
+    pub turn_reach: f32,
+    /// Angle (degrees) the surface must turn to, relative to the region normal, within that
+    /// reach for a border vertex to count as the rim of a cut.
+    pub turn_deg: f32,
+    /// Least share of border vertices that must see that turn.
+    pub min_turning_border: f32,
+    /// Least share of border vertices within staircase reach (when that is given; 0 disables).
+    pub min_staircase_border: f32,
+    /// Share of border vertices that may see the surface leave the other way (noise on
+    /// smoothed meshes); a terrace shows far more.
+    pub max_minority: f32,
+    /// Slope (offset along the normal over edge length) below which a border vertex shows no
+    /// direction.
+    pub min_slope: f32,
+}
+
+impl Default for CapParams {
+    fn default() -> Self {
+        Self {
+            flat_deg: 5.0,
+            min_faces: 10,
+            grow_step_deg: 10.0,
+            grow_total_deg: 25.0,
+            turn_reach: 0.5,
+            turn_deg: 75.0,
+            min_turning_border: 0.5,
+            min_staircase_border: 0.0,
+            max_minority: 0.1,
+            min_slope: 0.05,
+        }
+    }
+}
+
+/// One detected cap.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Cap {
+    pub faces: Vec<u32>,
+    pub vertices: Vec<u32>,
+    /// Area-weighted unit normal (outward for outward-oriented meshes).
+    pub normal: [f32; 3],
+    pub area_mm2: f64,
+}
+
+/// What cap detection found.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CapDetection {
+    pub caps: Vec<Cap>,
+    /// Flat regions large enough to examine.
+    pub n_regions: usize,
+    /// Regions rejected because the surface leaves them both ways (staircase terraces).
+    pub n_terraces: usize,
+}
+
+impl CapDetection {
+    /// Per-vertex flag: the vertex belongs to a cap.
+    pub fn cap_vertices(&self, n_vertices: usize) -> Vec<bool> {
+        let mut on = vec![false; n_vertices];
+        for c in &self.caps {
+            for &v in &c.vertices {
+                on[v as usize] = true;
+            }
+        }
+        on
+    }
+}
+
+fn angle_deg(a: [f32; 3], b: [f32; 3]) -> f32 {
+    (a[0] * b[0] + a[1] * b[1] + a[2] * b[2])
+        .clamp(-1.0, 1.0)
+        .acos()
+        .to_degrees()
+}
+
+/// Faces sharing an edge with face `f` (through the vertex->face CSR; no extra table).
+fn edge_neighbours(mesh: &Mesh, topology: &Topology, f: u32, out: &mut Vec<u32>) {
+    out.clear();
+    let t = mesh.triangles()[f as usize];
+    for k in 0..3 {
+        let (a, b) = (t[k] as usize, t[(k + 1) % 3] as usize);
+        let (fa, fb) = (topology.vertex_faces(a), topology.vertex_faces(b));
+        let (mut i, mut j) = (0, 0);
+        while i < fa.len() && j < fb.len() {
+            match fa[i].cmp(&fb[j]) {
+                std::cmp::Ordering::Less => i += 1,
+                std::cmp::Ordering::Greater => j += 1,
+                std::cmp::Ordering::Equal => {
+                    if fa[i] != f {
+                        out.push(fa[i]);
+                    }
+                    i += 1;
+                    j += 1;
+                }
+            }
+        }
+    }
+}
+
+/// Detects caps. `staircase_reach` (one flag per vertex: within tau_max of a staircase vertex
+/// along the surface) enables the staircase-border check.
+pub fn detect_caps(
+    mesh: &Mesh,
+    topology: &Topology,
+    staircase_reach: Option<&[bool]>,
+    params: &CapParams,
+) -> CapDetection {
+    let n_faces = mesh.n_triangles();
+    let tris = mesh.triangles();
+    let p = mesh.positions();
+    let curvature = vertex_normal_curvature(mesh, topology);
+    let normals = face_normals(mesh);
+    let degenerate = |f: usize| normals[f] == [0.0; 3];
+    let flat: Vec<bool> = (0..n_faces)
+        .map(|f| {
+            !degenerate(f)
+                && tris[f]
+                    .iter()
+                    .all(|&v| curvature[v as usize].is_some_and(|c| c <= params.flat_deg))
+        })
+        .collect();
+    // Connected flat regions.
+    const NONE: u32 = u32::MAX;
+    let mut region = vec![NONE; n_faces];
+    let mut regions: Vec<Vec<u32>> = Vec::new();
+    let mut scratch = Vec::new();
+    for start in 0..n_faces {
+        if !flat[start] || region[start] != NONE {
+            continue;
+        }
+        let id = regions.len() as u32;
+        let mut members = vec![start as u32];
+        region[start] = id;
+        let mut i = 0;
+        while i < members.len() {
+            edge_neighbours(mesh, topology, members[i], &mut scratch);
+            for &g in &scratch {
+                if flat[g as usize] && region[g as usize] == NONE {
+                    region[g as usize] = id;
+                    members.push(g);
+                }
+            }
+            i += 1;
+        }
+        regions.push(members);
+    }
+    // Drop small regions (their faces become free for growth).
+    let mut kept: Vec<Vec<u32>> = Vec::new();
+    for r in regions {
+        if r.len() >= params.min_faces {
+            let id = kept.len() as u32;
+            for &f in &r {
+                region[f as usize] = id;
+            }
+            kept.push(r);
+        } else {
+            for &f in &r {
+                region[f as usize] = NONE;
+            }
+        }
+    }
+    let mut detection = CapDetection {
+        caps: Vec::new(),
+        n_regions: kept.len(),
+        n_terraces: 0,
+    };
+    for (id, faces) in kept.iter_mut().enumerate() {
+        let id = id as u32;
+        let mean = region_normal(mesh, faces);
+        // Grow over neighbours of nearly the same orientation.
+        let mut queue: VecDeque<u32> = faces.iter().copied().collect();
+        while let Some(f) = queue.pop_front() {
+            edge_neighbours(mesh, topology, f, &mut scratch);
+            for &g in &scratch {
+                let gi = g as usize;
+                if region[gi] != NONE || degenerate(gi) {
+                    continue;
+                }
+                if angle_deg(normals[gi], normals[f as usize]) <= params.grow_step_deg
+                    && angle_deg(normals[gi], mean) <= params.grow_total_deg
+                {
+                    region[gi] = id;
+                    faces.push(g);
+                    queue.push_back(g);
+                }
+            }
+        }
+        let normal = region_normal(mesh, faces);
+        let mut vertices: Vec<u32> = faces.iter().flat_map(|&f| tris[f as usize]).collect();
+        vertices.sort_unstable();
+        vertices.dedup();
+        let in_region = |v: u32| vertices.binary_search(&v).is_ok();
+        // Border vertices: some incident face outside the region.
+        let border: Vec<u32> = vertices
+            .iter()
+            .copied()
+            .filter(|&v| {
+                topology
+                    .vertex_faces(v as usize)
+                    .iter()
+                    .any(|&g| region[g as usize] != id)
+            })
+            .collect();
+        if border.is_empty() {
+            continue;
+        }
+        // Sign of the largest offset of the outside neighbours along the region normal,
+        // counted where the slope is clear.
+        let (mut up, mut down) = (0usize, 0usize);
+        for &v in &border {
+            let pv = p[v as usize];
+            let mut best = (0.0f32, 0.0f32);
+            for &u in topology.neighbors(v as usize) {
+                if in_region(u) {
+                    continue;
+                }
+                let pu = p[u as usize];
+                let d = (0..3).map(|k| (pu[k] - pv[k]) * normal[k]).sum::<f32>();
+                if d.abs() > best.0.abs() {
+                    let len = (0..3).map(|k| (pu[k] - pv[k]).powi(2)).sum::<f32>().sqrt();
+                    best = (d, len);
+                }
+            }
+            let (d, len) = best;
+            if d > params.min_slope * len {
+                up += 1;
+            } else if d < -params.min_slope * len {
+                down += 1;
+            }
+        }
+        if up + down == 0 {
+            continue;
+        }
+        if up.min(down) as f32 > params.max_minority * (up + down) as f32 {
+            detection.n_terraces += 1;
+            continue;
+        }
+        // A cut leaves a rim where the wall turns away sharply (near 90 degrees for a tube cut
+        // across); a flat facet of a rounded surface is followed by more facets at shallow
+        // angles. Follow the surface outwards from the border up to a share of the region's
+        // width and see how far it turns.
+        let width = region_width(p, &vertices, normal);
+        let turned = turning_border(
+            mesh,
+            topology,
+            &normals,
+            &border,
+            in_region,
+            normal,
+            params.turn_reach * width,
+            params.turn_deg,
+        );
+        if (turned as f32) < params.min_turning_border * border.len() as f32 {
+            continue;
+        }
+        if let Some(reach) = staircase_reach {
+            let on = border.iter().filter(|&&v| reach[v as usize]).count();
+            if (on as f32) < params.min_staircase_border * border.len() as f32 {
+                continue;
+            }
+        }
+        let area_mm2 = faces
+            .iter()
+            .map(|&f| {
+                let a = triangle_area_vector(mesh, tris[f as usize]);
+                0.5 * (a.iter().map(|x| (*x as f64).powi(2)).sum::<f64>()).sqrt()
+            })
+            .sum();
+        let mut sorted_faces = faces.clone();
+        sorted_faces.sort_unstable();
+        detection.caps.push(Cap {
+            faces: sorted_faces,
+            vertices: vertices.clone(),
+            normal,
+            area_mm2,
+        });
+    }
+    detection
+}
+
+/// Number of border vertices from which the surface, followed outwards (outside the region)
+/// up to `reach` mm, reaches a face whose normal is at least `turn_deg` from `normal`.
+#[allow(clippy::too_many_arguments)]
+fn turning_border(
+    mesh: &Mesh,
+    topology: &Topology,
+    face_normals: &[[f32; 3]],
+    border: &[u32],
+    in_region: impl Fn(u32) -> bool,
+    normal: [f32; 3],
+    reach: f32,
+    turn_deg: f32,
+) -> usize {
+    use std::collections::{BinaryHeap, HashMap};
+    let p = mesh.positions();
+    // Multi-source search from the border; each reached vertex remembers its source.
+    let mut best: HashMap<u32, (f32, usize)> = HashMap::new();
+    let mut heap = BinaryHeap::new();
+    for (i, &v) in border.iter().enumerate() {
+        best.insert(v, (0.0, i));
+        heap.push(std::cmp::Reverse((0u32, v, i)));
+    }
+    let mut turned = vec![false; border.len()];
+    while let Some(std::cmp::Reverse((d_bits, v, source))) = heap.pop() {
+        let d = f32::from_bits(d_bits);
+        if best.get(&v).is_some_and(|&(b, _)| b < d) {
+            continue;
+        }
+        for &f in topology.vertex_faces(v as usize) {
+            let n = face_normals[f as usize];
+            if n != [0.0; 3] && angle_deg(n, normal) >= turn_deg {
+                turned[source] = true;
+            }
+        }
+        let pv = p[v as usize];
+        for &u in topology.neighbors(v as usize) {
+            if in_region(u) {
+                continue;
+            }
+            let pu = p[u as usize];
+            let nd = d + (0..3).map(|k| (pu[k] - pv[k]).powi(2)).sum::<f32>().sqrt();
+            if nd <= reach && best.get(&u).is_none_or(|&(b, _)| nd < b) {
+                best.insert(u, (nd, source));
+                // Non-negative f32 bits order like the values.
+                heap.push(std::cmp::Reverse((nd.to_bits(), u, source)));
+            }
+        }
+    }
+    turned.iter().filter(|&&t| t).count()
+}
+
+/// Smallest extent of a region within its plane (mm): four standard deviations along the
+/// in-plane direction of least spread (a disk gives its diameter, a strip about its width).
+fn region_width(p: &[[f32; 3]], vertices: &[u32], normal: [f32; 3]) -> f32 {
+    // An orthonormal basis (u, w) of the plane.
+    let helper = if normal[0].abs() < 0.9 {
+        [1.0, 0.0, 0.0]
+    } else {
+        [0.0, 1.0, 0.0]
+    };
+    let cross = |a: [f32; 3], b: [f32; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
+    let unit = |a: [f32; 3]| {
+        let l = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
+            .sqrt()
+            .max(f32::MIN_POSITIVE);
+        a.map(|x| x / l)
+    };
+    let u = unit(cross(normal, helper));
+    let w = cross(normal, u);
+    let coords: Vec<(f64, f64)> = vertices
+        .iter()
+        .map(|&v| {
+            let q = p[v as usize];
+            let dot = |a: [f32; 3]| (q[0] * a[0] + q[1] * a[1] + q[2] * a[2]) as f64;
+            (dot(u), dot(w))
+        })
+        .collect();
+    let n = coords.len().max(1) as f64;
+    let (mx, my) = coords
+        .iter()
+        .fold((0.0, 0.0), |(a, b), &(x, y)| (a + x / n, b + y / n));
+    let (mut sxx, mut syy, mut sxy) = (0.0, 0.0, 0.0);
+    for &(x, y) in &coords {
+        sxx += (x - mx) * (x - mx) / n;
+        syy += (y - my) * (y - my) / n;
+        sxy += (x - mx) * (y - my) / n;
+    }
+    // Smaller eigenvalue of the 2 x 2 covariance.
+    let half_trace = 0.5 * (sxx + syy);
+    let det = sxx * syy - sxy * sxy;
+    let min_var = (half_trace - (half_trace * half_trace - det).max(0.0).sqrt()).max(0.0);
+    (4.0 * min_var.sqrt()) as f32
+}
+
+/// Area-weighted unit normal of a set of faces.
+fn region_normal(mesh: &Mesh, faces: &[u32]) -> [f32; 3] {
+    let mut sum = [0.0f64; 3];
+    for &f in faces {
+        let a = triangle_area_vector(mesh, mesh.triangles()[f as usize]);
+        for k in 0..3 {
+            sum[k] += a[k] as f64;
+        }
+    }
+    let len = (sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]).sqrt();
+    if len > 0.0 {
+        sum.map(|x| (x / len) as f32)
+    } else {
+        [0.0; 3]
+    }
+}

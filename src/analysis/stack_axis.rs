@@ -1,0 +1,286 @@
+//! Image-stack orientation from a mesh alone (Moench 2012, §3.1): staircases and terraces put
+//! many face normals on the stack axis, which shows as dense clusters on the Gauss map.
+//!
+//! Face normals are binned on a grid over the unit sphere with n and -n counted together (a
+//! terrace facing up and one facing down are the same evidence, the paper's own proposal),
+//! each weighted by its face's area; the density of a bin is the weight within radius r (0.1);
+//! bins above (mean + max) / 2 are grown into clusters; each cluster's mean is a candidate; the
+//! candidate with most area within 4.5 degrees of it wins and is then refined from those faces.
+//! Evidence below a minimum share gives a "too weak" result instead of a random axis.
+
+use crate::mesh::geometry::triangle_area_vector;
+use crate::mesh::{Mesh, Topology};
+use crate::metrics::vertex_normal_curvature;
+use crate::parallel::deterministic_sum;
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// Parameters of the stack-axis estimation.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct StackAxisParams {
+    /// Neighbourhood radius on the unit sphere for the density (paper: 0.1).
+    pub radius: f64,
+    /// A face supports an axis when its normal is within this angle of the axis line (degrees).
+    pub support_deg: f64,
+    /// Least share of the surface area that must support the winning axis; below it the
+    /// evidence is too weak.
+    pub min_support_share: f64,
+    /// Least number of supporting faces.
+    pub min_support_faces: usize,
+    /// Only faces whose three vertices have a normal curvature up to this (degrees) count as
+    /// evidence: terraces are flat, while the zig-zag slivers marching cubes leaves on an
+    /// anisotropic grid are not and would otherwise form spurious clusters.
+    pub flat_deg: f32,
+}
+
+impl Default for StackAxisParams {
+    fn default() -> Self {
+        Self {
+            radius: 0.1,
+            support_deg: 4.5,
+            // A uniform Gauss map puts 0.3 % of the area within 4.5 degrees of any axis; ask
+            // for twice that before calling a direction the stack axis.
+            min_support_share: 0.006,
+            min_support_faces: 10,
+            flat_deg: 5.0,
+        }
+    }
+}
+
+/// Result of the estimation.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum StackAxis {
+    /// A unit axis (sign chosen so its largest component is positive) and the share of the
+    /// surface area whose normals lie within the support angle of it.
+    Found {
+        axis: [f64; 3],
+        confidence: f64,
+        n_candidates: usize,
+    },
+    /// No direction stands out: the mesh shows no staircases to estimate from.
+    TooWeak { best_share: f64 },
+}
+
+impl StackAxis {
+    /// The axis, if one was found.
+    pub fn axis(&self) -> Option<[f64; 3]> {
+        match self {
+            StackAxis::Found { axis, .. } => Some(*axis),
+            StackAxis::TooWeak { .. } => None,
+        }
+    }
+}
+
+fn normalize(v: [f64; 3]) -> Option<[f64; 3]> {
+    let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    (len > 1e-12 && len.is_finite()).then(|| v.map(|x| x / len))
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Sign convention: the largest component positive.
+fn canonical(a: [f64; 3]) -> [f64; 3] {
+    let k = (0..3)
+        .max_by(|&i, &j| a[i].abs().total_cmp(&a[j].abs()))
+        .unwrap_or(2);
+    if a[k] < 0.0 {
+        a.map(|x| -x)
+    } else {
+        a
+    }
+}
+
+/// Estimates the stack axis of a mesh from its face normals.
+pub fn stack_axis(mesh: &Mesh, topology: &Topology, params: &StackAxisParams) -> StackAxis {
+    let curvature = vertex_normal_curvature(mesh, topology);
+    let flat = |v: u32| curvature[v as usize].is_some_and(|c| c <= params.flat_deg);
+    // Evidence is the area of flat faces, not a face count: slivers (which marching cubes makes
+    // wherever the surface passes close to a grid point) then cannot outvote real terraces.
+    let (normals, areas): (Vec<[f64; 3]>, Vec<f64>) = mesh
+        .triangles()
+        .par_iter()
+        .filter_map(|&t| {
+            if !t.iter().all(|&v| flat(v)) {
+                return None;
+            }
+            let v = triangle_area_vector(mesh, t).map(f64::from);
+            let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+            (len > 0.0 && len.is_finite()).then(|| (v.map(|x| x / len), 0.5 * len))
+        })
+        .unzip();
+    let all_areas: Vec<f64> = mesh
+        .triangles()
+        .par_iter()
+        .map(|&t| {
+            let v = triangle_area_vector(mesh, t);
+            0.5 * (v.iter().map(|&x| (x as f64).powi(2)).sum::<f64>()).sqrt()
+        })
+        .collect();
+    // Shares are of the whole surface, so a mesh with little flat area gives little evidence.
+    let total_area = deterministic_sum(all_areas.len(), |i| all_areas[i]);
+    if normals.is_empty() || total_area <= 0.0 {
+        return StackAxis::TooWeak { best_share: 0.0 };
+    }
+    // Bins of half the radius over [-1, 1]^3; each normal counts at n and -n.
+    let bin = params.radius / 2.0;
+    let per_axis = (2.0 / bin).ceil() as usize + 1;
+    let index = |v: [f64; 3]| -> usize {
+        let c = v.map(|x| (((x + 1.0) / bin).floor() as usize).min(per_axis - 1));
+        (c[2] * per_axis + c[1]) * per_axis + c[0]
+    };
+    let n_bins = per_axis * per_axis * per_axis;
+    // Area per bin, summed per fixed chunk and then in chunk order (same bits for any thread count).
+    let partial: Vec<Vec<f64>> = normals
+        .par_chunks(65_536)
+        .zip(areas.par_chunks(65_536))
+        .map(|(chunk, area)| {
+            let mut c = vec![0.0f64; n_bins];
+            for (&n, &a) in chunk.iter().zip(area) {
+                c[index(n)] += a;
+                c[index(n.map(|x| -x))] += a;
+            }
+            c
+        })
+        .collect();
+    let mut counts = vec![0.0f64; n_bins];
+    for p in &partial {
+        for (x, y) in counts.iter_mut().zip(p) {
+            *x += y;
+        }
+    }
+    drop(partial);
+    let occupied: Vec<usize> = (0..n_bins).filter(|&b| counts[b] > 0.0).collect();
+    let centre = |b: usize| -> [f64; 3] {
+        let (i, j, k) = (
+            b % per_axis,
+            (b / per_axis) % per_axis,
+            b / (per_axis * per_axis),
+        );
+        [i, j, k].map(|c| -1.0 + (c as f64 + 0.5) * bin)
+    };
+    let reach = (params.radius / bin).ceil() as isize;
+    let neighbours = |b: usize| -> Vec<usize> {
+        let (i, j, k) = (
+            (b % per_axis) as isize,
+            ((b / per_axis) % per_axis) as isize,
+            (b / (per_axis * per_axis)) as isize,
+        );
+        let c = centre(b);
+        let mut out = Vec::new();
+        for dk in -reach..=reach {
+            for dj in -reach..=reach {
+                for di in -reach..=reach {
+                    let (x, y, z) = (i + di, j + dj, k + dk);
+                    let n = per_axis as isize;
+                    if x < 0 || y < 0 || z < 0 || x >= n || y >= n || z >= n {
+                        continue;
+                    }
+                    let o = ((z * n + y) * n + x) as usize;
+                    let d = centre(o);
+                    if counts[o] > 0.0
+                        && (0..3).map(|a| (c[a] - d[a]).powi(2)).sum::<f64>()
+                            <= params.radius * params.radius
+                    {
+                        out.push(o);
+                    }
+                }
+            }
+        }
+        out
+    };
+    // Density of a bin: samples within the radius of its centre.
+    let density: Vec<(usize, f64)> = occupied
+        .par_iter()
+        .map(|&b| (b, neighbours(b).iter().map(|&o| counts[o]).sum()))
+        .collect();
+    // Mean density as seen by the samples (area-weighted), and the maximum.
+    let total: f64 = density.iter().map(|&(b, _)| counts[b]).sum();
+    let mean = density.iter().map(|&(b, d)| d * counts[b]).sum::<f64>() / total;
+    let max = density.iter().map(|&(_, d)| d).fold(0.0, f64::max);
+    let threshold = 0.5 * (mean + max);
+    let dense: std::collections::BTreeSet<usize> = density
+        .iter()
+        .filter(|&&(_, d)| d >= threshold)
+        .map(|&(b, _)| b)
+        .collect();
+    // Region growing among dense bins; candidate = count-weighted mean of bin centres.
+    let mut seen = std::collections::BTreeSet::new();
+    let mut candidates: Vec<[f64; 3]> = Vec::new();
+    for &start in &dense {
+        if !seen.insert(start) {
+            continue;
+        }
+        let mut stack = vec![start];
+        let mut sum = [0.0f64; 3];
+        while let Some(b) = stack.pop() {
+            let c = centre(b);
+            for a in 0..3 {
+                sum[a] += c[a] * counts[b];
+            }
+            for o in neighbours(b) {
+                if dense.contains(&o) && seen.insert(o) {
+                    stack.push(o);
+                }
+            }
+        }
+        if let Some(axis) = normalize(sum) {
+            let axis = canonical(axis);
+            // n and -n clusters give the same line: keep one.
+            if !candidates.iter().any(|c| dot(*c, axis).abs() > 0.999) {
+                candidates.push(axis);
+            }
+        }
+    }
+    let cos_support = params.support_deg.to_radians().cos();
+    // Supporting area for an axis, as a share of the total.
+    let support = |a: [f64; 3]| {
+        deterministic_sum(normals.len(), |i| {
+            if dot(normals[i], a).abs() >= cos_support {
+                areas[i]
+            } else {
+                0.0
+            }
+        }) / total_area
+    };
+    let Some((best, best_share)) = candidates
+        .iter()
+        .map(|&c| (c, support(c)))
+        .max_by(|x, y| x.1.total_cmp(&y.1))
+    else {
+        return StackAxis::TooWeak { best_share: 0.0 };
+    };
+    // Refine from the supporting faces (area-weighted, sign-aligned mean), a few rounds.
+    let mut axis = best;
+    for _ in 0..3 {
+        let sum: [f64; 3] = std::array::from_fn(|k| {
+            deterministic_sum(normals.len(), |i| {
+                let d = dot(normals[i], axis);
+                if d.abs() >= cos_support {
+                    areas[i] * d.signum() * normals[i][k]
+                } else {
+                    0.0
+                }
+            })
+        });
+        match normalize(sum) {
+            Some(a) => axis = canonical(a),
+            None => break,
+        }
+    }
+    let share = support(axis).max(best_share);
+    let count = normals
+        .par_iter()
+        .filter(|&&n| dot(n, axis).abs() >= cos_support)
+        .count();
+    if share < params.min_support_share || count < params.min_support_faces {
+        return StackAxis::TooWeak { best_share: share };
+    }
+    StackAxis::Found {
+        axis,
+        confidence: share,
+        n_candidates: candidates.len(),
+    }
+}

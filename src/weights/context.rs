@@ -1,0 +1,143 @@
+//! Context-aware weights: staircase weights along the (estimated or given) stack axis, caps
+//! preserved or smoothed, and distance weights from reference structures, combined into one
+//! weight per vertex (Moench 2010, 2012; Moench et al. 2010).
+
+use super::{
+    distance_weights, staircase_weights, Combine, DistanceScaling, StaircaseParams,
+    StaircaseWeights, VertexWeights,
+};
+use crate::analysis::{
+    detect_caps, stack_axis, CapDetection, CapParams, StackAxis, StackAxisParams,
+};
+use crate::mesh::{Mesh, Topology};
+use crate::spatial::TriangleGrid;
+use serde::{Deserialize, Serialize};
+
+/// Where the stack axis comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AxisChoice {
+    /// Estimated from the mesh (Moench 2012, §3.1).
+    Auto,
+    /// Given (need not be normalised).
+    Given([f32; 3]),
+}
+
+/// What happens to detected caps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CapPolicy {
+    /// Weight 0: caps (CFD inlets and outlets) keep their exact shape.
+    #[default]
+    Preserve,
+    /// Caps are weighted like the rest of the surface.
+    Smooth,
+}
+
+/// Everything that decides the weights.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ContextParams {
+    /// Weight by staircases (off: staircases play no part).
+    pub staircase: bool,
+    pub axis: AxisChoice,
+    pub staircase_params: StaircaseParams,
+    pub caps: CapPolicy,
+    pub cap_params: CapParams,
+    /// Scaling of the distances to the reference structures (used when references are given).
+    pub distance_scaling: DistanceScaling,
+    pub combine: Combine,
+}
+
+impl Default for ContextParams {
+    fn default() -> Self {
+        Self {
+            staircase: true,
+            axis: AxisChoice::Auto,
+            staircase_params: StaircaseParams::default(),
+            caps: CapPolicy::Preserve,
+            cap_params: CapParams::default(),
+            distance_scaling: DistanceScaling::Linear,
+            combine: Combine::Product,
+        }
+    }
+}
+
+/// The analysis behind the weights, for reports.
+#[derive(Debug, Clone)]
+pub struct Context {
+    /// The estimated axis (None when the axis was given or staircases are off).
+    pub estimated_axis: Option<StackAxis>,
+    /// The axis used for staircase weighting, if any.
+    pub axis: Option<[f32; 3]>,
+    pub staircase: Option<StaircaseWeights>,
+    pub caps: CapDetection,
+    /// Minimum distance per vertex to the references (mm), when references were given.
+    pub reference_distance_mm: Option<Vec<f64>>,
+    /// The final weights.
+    pub weights: VertexWeights,
+}
+
+/// Computes context-aware weights for a mesh; `references` are the structures whose distance
+/// must be preserved (empty for none).
+pub fn context_weights(
+    mesh: &Mesh,
+    topology: &Topology,
+    params: &ContextParams,
+    references: &[&TriangleGrid],
+) -> Context {
+    let n = mesh.n_vertices();
+    let (estimated_axis, axis) = if !params.staircase {
+        (None, None)
+    } else {
+        match params.axis {
+            AxisChoice::Given(a) => {
+                let len = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+                (
+                    None,
+                    (len > 0.0 && len.is_finite()).then(|| a.map(|x| x / len)),
+                )
+            }
+            AxisChoice::Auto => {
+                let est = stack_axis(mesh, topology, &StackAxisParams::default());
+                (Some(est), est.axis().map(|a| a.map(|x| x as f32)))
+            }
+        }
+    };
+    let staircase = axis.map(|a| staircase_weights(mesh, topology, a, &params.staircase_params));
+    let reach: Option<Vec<bool>> = staircase
+        .as_ref()
+        .map(|s| s.distance_mm.iter().map(|d| d.is_finite()).collect());
+    let caps = detect_caps(mesh, topology, reach.as_deref(), &params.cap_params);
+    let reference_distance_mm =
+        (!references.is_empty()).then(|| super::distance::reference_distances(mesh, references));
+    // Staircase weighting without a found axis: no staircases, so only the floor beta_min.
+    let stair_weights = match (&staircase, params.staircase) {
+        (Some(s), _) => Some(s.weights.clone()),
+        (None, true) => Some(
+            VertexWeights::new(vec![params.staircase_params.beta_min.clamp(0.0, 1.0); n], n)
+                .unwrap_or_else(|_| VertexWeights::uniform(n)),
+        ),
+        (None, false) => None,
+    };
+    let dist_weights = reference_distance_mm
+        .as_ref()
+        .map(|d| distance_weights(d, params.distance_scaling));
+    let mut weights = match (stair_weights, dist_weights) {
+        (Some(s), Some(d)) => s.combine(&d, params.combine),
+        (Some(w), None) | (None, Some(w)) => w,
+        (None, None) => VertexWeights::uniform(n),
+    };
+    if params.caps == CapPolicy::Preserve {
+        for c in &caps.caps {
+            weights.zero(c.vertices.iter().copied());
+        }
+    }
+    Context {
+        estimated_axis,
+        axis,
+        staircase,
+        caps,
+        reference_distance_mm,
+        weights,
+    }
+}

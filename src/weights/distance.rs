@@ -1,0 +1,125 @@
+//! Distance-aware weights (Moench et al. 2010, IWDE): each vertex's exact minimum distance to the
+//! surfaces of the structure's reference structures, scaled to [0, 1] so vertices close to a
+//! neighbour barely move and distant ones are smoothed fully.
+
+use super::VertexWeights;
+use crate::mesh::Mesh;
+use crate::spatial::TriangleGrid;
+use serde::{Deserialize, Serialize};
+
+/// How a distance becomes a weight.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "scaling", rename_all = "snake_case")]
+pub enum DistanceScaling {
+    /// Closest vertex 0, farthest 1, linear in between (the paper's default).
+    Linear,
+    /// 0 within `margin_mm`, then linear up to 1 at the farthest vertex (surgical safety margin).
+    SafetyMargin { margin_mm: f32 },
+    /// The linear value b mapped by (e^{k b} - 1) / (e^k - 1) (paper: k = 3), a soft margin.
+    Exponential { k: f32 },
+    /// Absolute ramp: 0 below `d0_mm`, 1 above `d1_mm`; means the same in every case of a cohort.
+    Ramp { d0_mm: f32, d1_mm: f32 },
+}
+
+/// Minimum distance (mm) from each vertex of `mesh` to the nearest of the reference surfaces.
+pub fn reference_distances(mesh: &Mesh, references: &[&TriangleGrid]) -> Vec<f64> {
+    let mut best = vec![f64::INFINITY; mesh.n_vertices()];
+    for grid in references {
+        for (b, d) in best.iter_mut().zip(grid.distances(mesh.positions())) {
+            *b = b.min(d);
+        }
+    }
+    best
+}
+
+/// Weights from distances to references, scaled as asked. Without references (or with all
+/// distances infinite) every weight is 1.
+pub fn distance_weights(distances: &[f64], scaling: DistanceScaling) -> VertexWeights {
+    let finite = || distances.iter().copied().filter(|d| d.is_finite());
+    let lo = finite().fold(f64::INFINITY, f64::min);
+    let hi = finite().fold(f64::NEG_INFINITY, f64::max);
+    let linear = |d: f64, from: f64| {
+        if !d.is_finite() {
+            1.0
+        } else if hi > from {
+            ((d - from) / (hi - from)).clamp(0.0, 1.0)
+        } else {
+            1.0
+        }
+    };
+    let values = distances
+        .iter()
+        .map(|&d| {
+            let w = match scaling {
+                DistanceScaling::Linear => linear(d, lo),
+                DistanceScaling::SafetyMargin { margin_mm } => {
+                    if d <= margin_mm as f64 {
+                        0.0
+                    } else {
+                        linear(d, (margin_mm as f64).max(lo))
+                    }
+                }
+                DistanceScaling::Exponential { k } => {
+                    let b = linear(d, lo);
+                    let k = k as f64;
+                    if k.abs() < 1e-9 {
+                        b
+                    } else {
+                        ((k * b).exp() - 1.0) / (k.exp() - 1.0)
+                    }
+                }
+                DistanceScaling::Ramp { d0_mm, d1_mm } => {
+                    let (d0, d1) = (d0_mm as f64, d1_mm as f64);
+                    if !d.is_finite() || d >= d1 {
+                        1.0
+                    } else if d <= d0 || d1 <= d0 {
+                        0.0
+                    } else {
+                        (d - d0) / (d1 - d0)
+                    }
+                }
+            };
+            w.clamp(0.0, 1.0) as f32
+        })
+        .collect();
+    VertexWeights::new(values, distances.len())
+        .unwrap_or_else(|_| VertexWeights::uniform(distances.len()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scalings_by_hand() {
+        let d = [1.0, 2.0, 3.0, 5.0];
+        assert_eq!(
+            distance_weights(&d, DistanceScaling::Linear).as_slice(),
+            &[0.0, 0.25, 0.5, 1.0]
+        );
+        assert_eq!(
+            distance_weights(&d, DistanceScaling::SafetyMargin { margin_mm: 2.0 }).as_slice(),
+            &[0.0, 0.0, 1.0 / 3.0, 1.0]
+        );
+        let e = distance_weights(&d, DistanceScaling::Exponential { k: 3.0 });
+        let expect = ((3.0f64 * 0.25).exp() - 1.0) / (3f64.exp() - 1.0);
+        assert!((e.as_slice()[1] as f64 - expect).abs() < 1e-6);
+        assert_eq!(e.as_slice()[0], 0.0);
+        assert_eq!(e.as_slice()[3], 1.0);
+        assert_eq!(
+            distance_weights(
+                &d,
+                DistanceScaling::Ramp {
+                    d0_mm: 1.5,
+                    d1_mm: 3.5
+                }
+            )
+            .as_slice(),
+            &[0.0, 0.25, 0.75, 1.0]
+        );
+        assert_eq!(
+            distance_weights(&[f64::INFINITY; 2], DistanceScaling::Linear).as_slice(),
+            &[1.0, 1.0]
+        );
+    }
+}

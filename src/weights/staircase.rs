@@ -1,0 +1,241 @@
+//! Staircase weights (Moench 2010 §3, Moench 2012 §3.2): faces rated by orientation to the
+//! stack axis, vertices by the change of that rating around them, staircase vertices above a
+//! threshold, and every vertex weighted by its distance to the nearest staircase vertex measured
+//! through the surface, so a part of the surface that merely passes close by gets nothing.
+
+use super::VertexWeights;
+use crate::mesh::geometry::face_normals;
+use crate::mesh::{Mesh, Topology};
+use rayon::prelude::*;
+use serde::Serialize;
+use std::cmp::Ordering;
+use std::collections::BinaryHeap;
+
+/// Parameters of staircase weighting.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct StaircaseParams {
+    /// Orientation change above which a vertex is a staircase vertex (paper: 0.7).
+    pub tau: f32,
+    /// Reach of a staircase into its surroundings, along the surface (mm; paper: 3).
+    pub tau_max_mm: f32,
+    /// Weight floor, so artifact-free areas are still smoothed a little (paper: 0.1; 0 keeps them fixed).
+    pub beta_min: f32,
+}
+
+impl Default for StaircaseParams {
+    fn default() -> Self {
+        Self {
+            tau: 0.7,
+            tau_max_mm: 3.0,
+            beta_min: 0.1,
+        }
+    }
+}
+
+/// Staircase analysis of a mesh.
+#[derive(Debug, Clone)]
+pub struct StaircaseWeights {
+    /// Final weights w' in [beta_min, 1].
+    pub weights: VertexWeights,
+    /// Vertices above the orientation-change threshold.
+    pub is_staircase: Vec<bool>,
+    /// Geodesic distance to the nearest staircase vertex (mm), infinite beyond tau_max.
+    pub distance_mm: Vec<f32>,
+}
+
+impl StaircaseWeights {
+    /// Number of staircase vertices.
+    pub fn n_staircase(&self) -> usize {
+        self.is_staircase.iter().filter(|&&s| s).count()
+    }
+}
+
+/// Face orientation theta_f = 1 - |n_f . axis|: 1 for walls along the axis, 0 for terraces
+/// across it; degenerate faces get 1 - 0 = 1 but are excluded from every vertex by topology.
+pub fn face_orientation(mesh: &Mesh, axis: [f32; 3]) -> Vec<f32> {
+    face_normals(mesh)
+        .par_iter()
+        .map(|n| 1.0 - (n[0] * axis[0] + n[1] * axis[1] + n[2] * axis[2]).abs())
+        .collect()
+}
+
+/// Orientation change per vertex: max - min of theta over its incident faces (0 if none).
+pub fn orientation_change(topology: &Topology, theta: &[f32]) -> Vec<f32> {
+    (0..topology.n_vertices())
+        .into_par_iter()
+        .map(|v| {
+            let faces = topology.vertex_faces(v);
+            if faces.is_empty() {
+                return 0.0;
+            }
+            let (lo, hi) = faces
+                .iter()
+                .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &f| {
+                    let t = theta[f as usize];
+                    (lo.min(t), hi.max(t))
+                });
+            hi - lo
+        })
+        .collect()
+}
+
+/// Heap entry ordered by distance, then vertex, for a deterministic search.
+#[derive(PartialEq)]
+struct Entry(f64, u32);
+impl Eq for Entry {}
+impl PartialOrd for Entry {
+    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+        Some(self.cmp(other))
+    }
+}
+impl Ord for Entry {
+    fn cmp(&self, other: &Self) -> Ordering {
+        // Reversed: BinaryHeap is a max-heap and the search wants the nearest first.
+        other.0.total_cmp(&self.0).then(other.1.cmp(&self.1))
+    }
+}
+
+/// Shortest distance along mesh edges from any source vertex, searched up to `limit` mm
+/// (multi-source Dijkstra); vertices beyond stay infinite.
+pub fn geodesic_distance(
+    mesh: &Mesh,
+    topology: &Topology,
+    sources: &[bool],
+    limit: f64,
+) -> Vec<f32> {
+    let p = mesh.positions();
+    let mut dist = vec![f64::INFINITY; mesh.n_vertices()];
+    let mut heap = BinaryHeap::new();
+    for (v, _) in sources.iter().enumerate().filter(|(_, &s)| s) {
+        dist[v] = 0.0;
+        heap.push(Entry(0.0, v as u32));
+    }
+    while let Some(Entry(d, v)) = heap.pop() {
+        if d > dist[v as usize] {
+            continue;
+        }
+        let pv = p[v as usize];
+        for &u in topology.neighbors(v as usize) {
+            let pu = p[u as usize];
+            let len = (0..3)
+                .map(|k| (pu[k] as f64 - pv[k] as f64).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            let nd = d + len;
+            if nd <= limit && nd < dist[u as usize] {
+                dist[u as usize] = nd;
+                heap.push(Entry(nd, u));
+            }
+        }
+    }
+    dist.into_iter().map(|d| d as f32).collect()
+}
+
+/// Staircase weights for a mesh whose stack axis is `axis` (unit vector).
+pub fn staircase_weights(
+    mesh: &Mesh,
+    topology: &Topology,
+    axis: [f32; 3],
+    params: &StaircaseParams,
+) -> StaircaseWeights {
+    let theta = face_orientation(mesh, axis);
+    let change = orientation_change(topology, &theta);
+    let is_staircase: Vec<bool> = change.iter().map(|&c| c > params.tau).collect();
+    let distance_mm = geodesic_distance(mesh, topology, &is_staircase, params.tau_max_mm as f64);
+    // Scale by the largest distance reached (at most tau_max).
+    let max_d = distance_mm
+        .iter()
+        .filter(|d| d.is_finite())
+        .fold(0.0f32, |a, &d| a.max(d));
+    let scale = params.tau_max_mm.min(max_d);
+    let beta = params.beta_min.clamp(0.0, 1.0);
+    let values: Vec<f32> = distance_mm
+        .iter()
+        .map(|&d| {
+            let w = if !d.is_finite() {
+                0.0
+            } else if scale > 0.0 {
+                (1.0 - d / scale).clamp(0.0, 1.0)
+            } else {
+                1.0
+            };
+            w * (1.0 - beta) + beta
+        })
+        .collect();
+    StaircaseWeights {
+        weights: VertexWeights::new(values, mesh.n_vertices())
+            .unwrap_or_else(|_| VertexWeights::uniform(mesh.n_vertices())),
+        is_staircase,
+        distance_mm,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two terraces joined by a wall: z = 0 for x < 2, z = 1 for x > 2 (a step along x).
+    fn step() -> Mesh {
+        let mut p = Vec::new();
+        for x in [0.0f32, 1.0, 2.0, 2.0, 3.0, 4.0] {
+            for y in [0.0f32, 1.0] {
+                let z = if p.len() / 2 >= 3 { 1.0 } else { 0.0 };
+                p.push([x, y, z]);
+            }
+        }
+        let mut t = Vec::new();
+        for i in 0..5u32 {
+            let (a, b, c, d) = (2 * i, 2 * i + 1, 2 * i + 2, 2 * i + 3);
+            t.push([a, c, d]);
+            t.push([a, d, b]);
+        }
+        Mesh::new(p, t).unwrap()
+    }
+
+    #[test]
+    fn step_edges_are_staircases_and_weights_fall_off_with_surface_distance() {
+        let m = step();
+        let topo = Topology::build(&m);
+        let theta = face_orientation(&m, [0.0, 0.0, 1.0]);
+        assert_eq!(theta[0], 0.0);
+        assert_eq!(theta[4], 1.0); // the wall
+        let params = StaircaseParams {
+            tau: 0.7,
+            tau_max_mm: 10.0,
+            beta_min: 0.0,
+        };
+        let s = staircase_weights(&m, &topo, [0.0, 0.0, 1.0], &params);
+        // Vertices on both edges of the wall (x = 2 at z 0 and z 1) are staircase vertices.
+        assert_eq!(
+            s.is_staircase,
+            vec![false, false, false, false, true, true, true, true, false, false, false, false]
+        );
+        // Distance along the surface: 2 mm to the far ends; weight 1 - d / max D.
+        assert_eq!(s.distance_mm[0], 2.0);
+        assert_eq!(s.weights.as_slice()[0], 0.0);
+        assert_eq!(s.weights.as_slice()[2], 0.5);
+        assert_eq!(s.weights.as_slice()[4], 1.0);
+        let with_floor = staircase_weights(
+            &m,
+            &topo,
+            [0.0, 0.0, 1.0],
+            &StaircaseParams {
+                beta_min: 0.1,
+                ..params
+            },
+        );
+        assert!((with_floor.weights.as_slice()[0] - 0.1).abs() < 1e-7);
+        // Beyond tau_max nothing is reached.
+        let short = staircase_weights(
+            &m,
+            &topo,
+            [0.0, 0.0, 1.0],
+            &StaircaseParams {
+                tau_max_mm: 1.5,
+                ..params
+            },
+        );
+        assert!(short.distance_mm[0].is_infinite());
+        assert_eq!(short.weights.as_slice()[0], 0.0);
+    }
+}

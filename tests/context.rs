@@ -1,0 +1,333 @@
+//! Context analysis on the phantoms, against the papers' claims: stack axis (Moench 2012
+//! Tables 4, 5), staircase and cap detection (§3.2, §3.3, §4.3), context- and distance-aware
+//! smoothing (Table 3; Moench 2010 Table 1).
+
+use destair::analysis::{stack_axis, StackAxis, StackAxisParams};
+use destair::phantom::volume::{apply, rotation_matrix};
+use destair::phantom::{named_case, PhantomOptions};
+
+fn angle_deg(a: [f64; 3], b: [f64; 3]) -> f64 {
+    let d = (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]).abs().min(1.0);
+    d.acos().to_degrees()
+}
+
+fn estimate(name: &str, rx: f64, ry: f64) -> (StackAxis, [f64; 3]) {
+    let case = named_case(
+        name,
+        &PhantomOptions {
+            rotate_x_deg: rx,
+            rotate_y_deg: ry,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let truth = apply(&rotation_matrix([rx, ry, 0.0]), [0.0, 0.0, 1.0]);
+    let m = &case.meshes[0].1;
+    (
+        stack_axis(m, &destair::Topology::build(m), &StackAxisParams::default()),
+        truth,
+    )
+}
+
+#[test]
+fn stack_axis_of_rotated_phantoms_within_half_a_degree_on_average() {
+    let mut errors = Vec::new();
+    for name in ["sphere-aniso", "cap-cylinder"] {
+        for (rx, ry) in [
+            (0.0, 0.0),
+            (30.0, 0.0),
+            (60.0, 0.0),
+            (90.0, 0.0),
+            (0.0, 30.0),
+            (0.0, 60.0),
+            (0.0, 90.0),
+        ] {
+            let (est, truth) = estimate(name, rx, ry);
+            let axis = est
+                .axis()
+                .unwrap_or_else(|| panic!("{name} {rx} {ry}: {est:?}"));
+            errors.push(angle_deg(axis, truth));
+        }
+    }
+    let mean = errors.iter().sum::<f64>() / errors.len() as f64;
+    eprintln!("axis errors (degrees): {errors:?}, mean {mean}");
+    assert!(mean < 0.5, "mean error {mean}");
+}
+
+#[test]
+fn stack_axis_of_cut_spheres_and_none_for_a_round_sphere() {
+    for (name, must) in [
+        ("sphere-aniso-1-8", true),
+        ("sphere-aniso-1-16", false),
+        ("sphere-aniso-1-4", true),
+    ] {
+        let (est, truth) = estimate(name, 0.0, 0.0);
+        eprintln!("{name}: {est:?}");
+        match est.axis() {
+            Some(a) => assert!(angle_deg(a, truth) < 2.0, "{name}: {est:?}"),
+            None => assert!(!must, "{name}: {est:?}"),
+        }
+    }
+    // A finely tessellated round sphere (subdivided icosahedron) has no staircases at all.
+    let sphere = icosphere(5, 40.0);
+    let est = stack_axis(
+        &sphere,
+        &destair::Topology::build(&sphere),
+        &StackAxisParams::default(),
+    );
+    assert!(
+        matches!(est, StackAxis::TooWeak { .. }),
+        "a round sphere has no staircases: {est:?}"
+    );
+}
+
+/// A sphere of `radius` mm made by subdividing an icosahedron `levels` times (20 * 4^levels faces).
+fn icosphere(levels: usize, radius: f32) -> destair::Mesh {
+    let t = (1.0 + 5f32.sqrt()) / 2.0;
+    let mut p: Vec<[f32; 3]> = vec![
+        [-1.0, t, 0.0],
+        [1.0, t, 0.0],
+        [-1.0, -t, 0.0],
+        [1.0, -t, 0.0],
+        [0.0, -1.0, t],
+        [0.0, 1.0, t],
+        [0.0, -1.0, -t],
+        [0.0, 1.0, -t],
+        [t, 0.0, -1.0],
+        [t, 0.0, 1.0],
+        [-t, 0.0, -1.0],
+        [-t, 0.0, 1.0],
+    ];
+    let mut f: Vec<[u32; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    let unit = |v: [f32; 3]| {
+        let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        v.map(|x| x / l)
+    };
+    for q in &mut p {
+        *q = unit(*q);
+    }
+    for _ in 0..levels {
+        let mut mid = std::collections::HashMap::new();
+        let mut next = Vec::new();
+        for tri in &f {
+            let mut m = [0u32; 3];
+            for k in 0..3 {
+                let (a, b) = (tri[k].min(tri[(k + 1) % 3]), tri[k].max(tri[(k + 1) % 3]));
+                m[k] = *mid.entry((a, b)).or_insert_with(|| {
+                    let (pa, pb) = (p[a as usize], p[b as usize]);
+                    p.push(unit([pa[0] + pb[0], pa[1] + pb[1], pa[2] + pb[2]]));
+                    (p.len() - 1) as u32
+                });
+            }
+            next.extend([
+                [tri[0], m[0], m[2]],
+                [tri[1], m[1], m[0]],
+                [tri[2], m[2], m[1]],
+                [m[0], m[1], m[2]],
+            ]);
+        }
+        f = next;
+    }
+    destair::Mesh::new(p.iter().map(|q| q.map(|x| x * radius)).collect(), f).unwrap()
+}
+
+use destair::analysis::{detect_caps, CapParams};
+use destair::metrics::{average_normal_curvature, enclosed_volume, minimum_distance};
+use destair::smooth::{boundary_vertices, smooth, Method};
+use destair::spatial::TriangleGrid;
+use destair::weights::{
+    context_weights, AxisChoice, ContextParams, DistanceScaling, StaircaseParams, VertexWeights,
+};
+use destair::{Mesh, Topology};
+
+fn smoothed(m: &Mesh, method: Method, iterations: usize, weights: &VertexWeights) -> Mesh {
+    let t = Topology::build(m);
+    let (p, _) = smooth(m, &t, &method, iterations, weights, &boundary_vertices(&t));
+    let mut s = m.clone();
+    s.positions_mut().copy_from_slice(&p);
+    s
+}
+
+fn centroid(m: &Mesh, vertices: &[u32]) -> [f32; 3] {
+    let n = vertices.len() as f32;
+    std::array::from_fn(|k| {
+        vertices
+            .iter()
+            .map(|&v| m.positions()[v as usize][k])
+            .sum::<f32>()
+            / n
+    })
+}
+
+#[test]
+fn caps_of_the_cap_cylinder_raw_and_after_laplace() {
+    let case = named_case("cap-cylinder", &PhantomOptions::default()).unwrap();
+    let raw = &case.meshes[0].1;
+    let found = detect_caps(raw, &Topology::build(raw), None, &CapParams::default());
+    // Exactly the two cylinder ends; none of the cuboid's staircases.
+    assert_eq!(
+        found.caps.len(),
+        2,
+        "{:?}",
+        found.caps.iter().map(|c| c.normal).collect::<Vec<_>>()
+    );
+    let mut nz: Vec<f32> = found.caps.iter().map(|c| c.normal[2]).collect();
+    nz.sort_by(f32::total_cmp);
+    assert!(nz[0] < -0.999 && nz[1] > 0.999);
+    assert!(
+        found.n_terraces >= 3,
+        "terraces recognised as such: {}",
+        found.n_terraces
+    );
+    for c in &found.caps {
+        assert!(c.area_mm2 > 1500.0, "a whole cylinder end: {}", c.area_mm2);
+    }
+
+    let soft = smoothed(
+        raw,
+        Method::Laplace { lambda: 0.5 },
+        50,
+        &VertexWeights::uniform(raw.n_vertices()),
+    );
+    let found = detect_caps(&soft, &Topology::build(&soft), None, &CapParams::default());
+    let ends: Vec<_> = found
+        .caps
+        .iter()
+        .filter(|c| c.normal[2].abs() > 0.99)
+        .collect();
+    assert_eq!(ends.len(), 2, "both rounded cylinder ends are still caps");
+    for c in &ends {
+        let x = centroid(&soft, &c.vertices)[0];
+        assert!(
+            (x - 38.0).abs() < 3.0,
+            "on the cylinder axis, not on the cuboid: {x}"
+        );
+    }
+    // The cuboid's terraces (normals near the stack axis, off the cylinder) are not caps.
+    for c in &found.caps {
+        let x = centroid(&soft, &c.vertices)[0];
+        assert!(
+            !(c.normal[2].abs() > 0.9 && x > 60.0),
+            "cuboid terrace taken for a cap"
+        );
+    }
+}
+
+#[test]
+fn aneurysm_clipped_ends_are_the_caps() {
+    let case = named_case("aneurysm", &PhantomOptions::default()).unwrap();
+    let m = &case.meshes[0].1;
+    let found = detect_caps(m, &Topology::build(m), None, &CapParams::default());
+    assert_eq!(found.caps.len(), 3, "inlet and two outlets");
+    let top = case.info.origin_mm[2] + (case.info.dims[2] as f64 - 0.5) * case.info.spacing_mm[2];
+    let bottom = case.info.origin_mm[2] - 0.5 * case.info.spacing_mm[2];
+    for c in &found.caps {
+        let z = centroid(m, &c.vertices)[2] as f64;
+        assert!(
+            (z - top).abs() < 1e-3 || (z - bottom).abs() < 1e-3,
+            "cap at z = {z}"
+        );
+    }
+}
+
+#[test]
+fn context_aware_laplace_keeps_volume_and_leaves_distant_vertices() {
+    // The paper's sphere was Gaussian-smoothed before marching cubes: the smooth variant, with
+    // a quarter of its top slice removed, has staircases only there.
+    let case = named_case("sphere-smooth-1-4", &PhantomOptions::default()).unwrap();
+    let m = &case.meshes[0].1;
+    let t = Topology::build(m);
+    let v0 = enclosed_volume(m, &t).mm3;
+    let uniform = smoothed(
+        m,
+        Method::Laplace { lambda: 0.5 },
+        20,
+        &VertexWeights::uniform(m.n_vertices()),
+    );
+    let params = ContextParams {
+        axis: AxisChoice::Given([0.0, 0.0, 1.0]),
+        staircase_params: StaircaseParams {
+            beta_min: 0.0,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let ctx = context_weights(m, &t, &params, &[]);
+    let aware = smoothed(m, Method::Laplace { lambda: 0.5 }, 20, &ctx.weights);
+    let dv_uniform = (enclosed_volume(&uniform, &Topology::build(&uniform)).mm3 - v0) / v0;
+    let dv_aware = (enclosed_volume(&aware, &Topology::build(&aware)).mm3 - v0) / v0;
+    eprintln!(
+        "volume change: uniform {:.3} %, context-aware {:.3} %",
+        100.0 * dv_uniform,
+        100.0 * dv_aware
+    );
+    assert!(dv_aware.abs() < dv_uniform.abs() / 3.0);
+    // With beta_min 0, vertices out of every staircase's reach do not move at all.
+    let stairs = ctx.staircase.as_ref().unwrap();
+    let mut n_far = 0;
+    for v in 0..m.n_vertices() {
+        if stairs.distance_mm[v].is_infinite() {
+            n_far += 1;
+            assert_eq!(aware.positions()[v], m.positions()[v]);
+        }
+    }
+    assert!(
+        n_far > m.n_vertices() / 2,
+        "most of the sphere is far from the cut: {n_far}"
+    );
+}
+
+#[test]
+fn distance_aware_laplace_on_the_neck_keeps_the_tumor_vein_distance() {
+    let case = named_case("neck", &PhantomOptions::default()).unwrap();
+    let (tumor, vein, trachea) = (&case.meshes[0].1, &case.meshes[1].1, &case.meshes[2].1);
+    let t = Topology::build(tumor);
+    let (gv, gt) = (TriangleGrid::build(vein), TriangleGrid::build(trachea));
+    let params = ContextParams {
+        staircase: false,
+        distance_scaling: DistanceScaling::Linear,
+        ..Default::default()
+    };
+    let ctx = context_weights(tumor, &t, &params, &[&gv, &gt]);
+    let s = smoothed(tumor, Method::Laplace { lambda: 1.0 }, 30, &ctx.weights);
+    let before = minimum_distance(tumor, &TriangleGrid::build(tumor), vein, &gv);
+    let after = minimum_distance(&s, &TriangleGrid::build(&s), vein, &gv);
+    let c0 = average_normal_curvature(tumor, &t);
+    let c1 = average_normal_curvature(&s, &Topology::build(&s));
+    eprintln!("tumor-vein {before:.4} -> {after:.4} mm; curvature {c0:.2} -> {c1:.2} degrees");
+    assert!((after - before).abs() <= 0.02, "{before} -> {after}");
+    assert!(c1 <= 0.6 * c0, "curvature {c0} -> {c1}");
+    // Uniform Laplace, for contrast, changes the distance far more.
+    let u = smoothed(
+        tumor,
+        Method::Laplace { lambda: 1.0 },
+        30,
+        &VertexWeights::uniform(tumor.n_vertices()),
+    );
+    let uniform_after = minimum_distance(&u, &TriangleGrid::build(&u), vein, &gv);
+    assert!(
+        (uniform_after - before).abs() > 0.1,
+        "{before} -> {uniform_after}"
+    );
+}
