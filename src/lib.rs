@@ -5,6 +5,7 @@
 
 pub mod analysis;
 pub mod io;
+pub mod job;
 pub mod mesh;
 pub mod metrics;
 pub mod parallel;

@@ -51,29 +51,30 @@ enum Command {
         /// Output mesh (.ply or .stl); vertex order is kept.
         #[arg(short, long)]
         output: PathBuf,
-        #[arg(long, value_enum)]
-        method: MethodArg,
+        /// laplace, hc, taubin, mcf, npc, cell-size, cell-edge or diamond.
+        #[arg(long)]
+        method: destair::smooth::MethodKind,
         /// Iterations (the maximum for cell-size, cell-edge and diamond, which stop on convergence).
         #[arg(long)]
         iterations: Option<usize>,
         /// Step factor (default 0.5; 1 for the constrained relaxations).
         #[arg(long)]
         lambda: Option<f32>,
-        /// Taubin's negative factor.
-        #[arg(long, default_value_t = -0.53, allow_negative_numbers = true)]
-        mu: f32,
-        /// Laplace+HC: pull towards the original (0) or previous (1) positions.
-        #[arg(long, default_value_t = 0.0)]
-        alpha: f32,
-        /// Laplace+HC: share of a vertex's own correction.
-        #[arg(long, default_value_t = 0.5)]
-        beta: f32,
+        /// Taubin's negative factor (default -0.53).
+        #[arg(long, allow_negative_numbers = true)]
+        mu: Option<f32>,
+        /// Laplace+HC: pull towards the original (0, default) or previous (1) positions.
+        #[arg(long)]
+        alpha: Option<f32>,
+        /// Laplace+HC: share of a vertex's own correction (default 0.5).
+        #[arg(long)]
+        beta: Option<f32>,
         /// Voxel size in mm as X,Y,Z (default: reconstructed from the mesh).
         #[arg(long, value_parser = parse_voxel)]
         voxel: Option<[f32; 3]>,
-        /// Relaxations stop when no vertex moves more than this in one iteration (mm).
-        #[arg(long, default_value_t = 0.002)]
-        threshold: f32,
+        /// Relaxations stop when no vertex moves more than this in one iteration (mm; default 0.002).
+        #[arg(long)]
+        threshold: Option<f32>,
         /// PLY file with a per-vertex `weight` property in [0, 1] (same vertices as the input).
         #[arg(long)]
         weights: Option<PathBuf>,
@@ -101,6 +102,54 @@ enum Command {
         voxel: Option<[f32; 3]>,
         #[arg(long)]
         json: bool,
+    },
+    /// Process a whole cohort described by a configuration file.
+    Run {
+        config: PathBuf,
+        /// Process a share of the cases: I/N (0 <= I < N), or `slurm` for the array task's share.
+        #[arg(long)]
+        shard: Option<String>,
+        /// Redo cases that are already done with the same inputs and settings.
+        #[arg(long)]
+        force: bool,
+    },
+    /// Process exactly one case folder (for Snakemake, Nextflow and other workflow engines).
+    RunCase {
+        case_dir: PathBuf,
+        #[arg(long)]
+        config: PathBuf,
+        /// Output root; the case's outputs go to OUT/<case folder name>/.
+        #[arg(long)]
+        out: PathBuf,
+        #[arg(long)]
+        force: bool,
+    },
+    /// Validate a configuration and print the effective settings per structure; touches nothing.
+    Check { config: PathBuf },
+    /// Print the cases a configuration finds (TSV, or JSON lines), e.g. for workflow engines.
+    List {
+        config: PathBuf,
+        #[arg(long)]
+        jsonl: bool,
+        #[arg(long)]
+        shard: Option<String>,
+    },
+    /// Rebuild the cohort summary from the case reports under one or more output folders.
+    Summarize {
+        #[arg(required = true)]
+        out_dirs: Vec<PathBuf>,
+        /// The configuration, to report cases that have no report yet.
+        #[arg(long)]
+        config: Option<PathBuf>,
+    },
+    /// Generate a small phantom cohort and run config/demo.toml on it.
+    Demo {
+        /// Folder for the demo (cases/, demo.toml, out/).
+        #[arg(default_value = "destair-demo")]
+        dir: PathBuf,
+        /// Number of cases.
+        #[arg(long, default_value_t = 6)]
+        cases: usize,
     },
     /// Generate phantom cases: marching-cubes meshes of analytic shapes with real staircases.
     ///
@@ -239,36 +288,7 @@ fn parse_axis(s: &str) -> Result<AxisArg, String> {
 }
 
 fn parse_scaling(s: &str) -> Result<destair::weights::DistanceScaling, String> {
-    use destair::weights::DistanceScaling;
-    let number = |x: &str| {
-        x.trim()
-            .parse::<f32>()
-            .ok()
-            .filter(|v| v.is_finite() && *v >= 0.0)
-    };
-    let bad = || format!("expected linear, margin:MM, exp:K or ramp:D0,D1, got {s:?}");
-    match s.split_once(':') {
-        None if s == "linear" => Ok(DistanceScaling::Linear),
-        Some(("margin", m)) => Ok(DistanceScaling::SafetyMargin {
-            margin_mm: number(m).ok_or_else(bad)?,
-        }),
-        Some(("exp", k)) => Ok(DistanceScaling::Exponential {
-            k: k.trim()
-                .parse::<f32>()
-                .ok()
-                .filter(|v| v.is_finite())
-                .ok_or_else(bad)?,
-        }),
-        Some(("ramp", r)) => {
-            let (a, b) = r.split_once(',').ok_or_else(bad)?;
-            let (d0_mm, d1_mm) = (number(a).ok_or_else(bad)?, number(b).ok_or_else(bad)?);
-            if d1_mm <= d0_mm {
-                return Err(format!("ramp needs D0 < D1, got {s:?}"));
-            }
-            Ok(DistanceScaling::Ramp { d0_mm, d1_mm })
-        }
-        _ => Err(bad()),
-    }
+    s.parse()
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -337,18 +357,6 @@ impl ContextArgs {
     }
 }
 
-#[derive(Clone, Copy, PartialEq, Eq, ValueEnum)]
-enum MethodArg {
-    Laplace,
-    Hc,
-    Taubin,
-    Mcf,
-    Npc,
-    CellSize,
-    CellEdge,
-    Diamond,
-}
-
 fn parse_voxel(s: &str) -> Result<[f32; 3], String> {
     let parts: Vec<&str> = s.split(',').map(str::trim).collect();
     let values: Vec<f32> = parts
@@ -387,6 +395,13 @@ struct UsageError(String);
 struct InputError(destair::io::ReadError);
 
 fn main() -> ExitCode {
+    // Like other Unix tools, end quietly when the reader of our output goes away
+    // (`destair list ... | head`) instead of failing on every print.
+    #[cfg(unix)]
+    // SAFETY: restoring the default disposition of SIGPIPE at startup, before any thread exists.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = Cli::parse();
     if let Err(e) = configure_threads(cli.threads) {
         eprintln!("error: {e:#}");
@@ -396,9 +411,13 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e:#}");
-            if e.downcast_ref::<UsageError>().is_some() {
+            if let Some(Interrupted(signal)) = e.downcast_ref::<Interrupted>() {
+                ExitCode::from(128 + *signal as u8)
+            } else if e.downcast_ref::<UsageError>().is_some() {
                 ExitCode::from(2)
-            } else if e.downcast_ref::<InputError>().is_some() {
+            } else if e.downcast_ref::<CasesFailed>().is_some()
+                || e.downcast_ref::<InputError>().is_some()
+            {
                 ExitCode::from(3)
             } else {
                 ExitCode::from(1)
@@ -430,8 +449,328 @@ fn configure_threads(threads: Option<usize>) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// A run that stopped early because of a signal (exit 128 + signal, so engines may retry).
+#[derive(Debug, thiserror::Error)]
+#[error("stopped by signal {0}")]
+struct Interrupted(i32);
+
+/// Some cases failed (exit 3).
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+struct CasesFailed(String);
+
+fn load_plan(config: &std::path::Path) -> anyhow::Result<destair::job::Plan> {
+    destair::job::Plan::load(config).map_err(|e| UsageError(e.to_string()).into())
+}
+
+fn shard_of(arg: &Option<String>) -> anyhow::Result<Option<destair::job::Shard>> {
+    use destair::job::Shard;
+    match arg.as_deref() {
+        None => Ok(None),
+        Some("slurm") => Shard::from_slurm(|k| std::env::var(k).ok())
+            .map(Some)
+            .map_err(|e| UsageError(e).into()),
+        Some(s) => Shard::parse(s).map(Some).map_err(|e| UsageError(e).into()),
+    }
+}
+
+/// UTC wall-clock time of day, for log lines on clusters.
+fn clock() -> String {
+    let secs = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    format!(
+        "{:02}:{:02}:{:02}",
+        secs / 3600 % 24,
+        secs / 60 % 60,
+        secs % 60
+    )
+}
+
+/// Runs cases through the pipeline with progress lines, signal handling and the exit policy.
+fn run_cases(
+    plan: &destair::job::Plan,
+    cases: Vec<destair::job::CaseInput>,
+    force: bool,
+    write_summary: bool,
+) -> anyhow::Result<()> {
+    use destair::job::pipeline::{run, Event, RunOptions};
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+    let term = Arc::new(AtomicBool::new(false));
+    let int = Arc::new(AtomicBool::new(false));
+    signal_hook::flag::register(signal_hook::consts::SIGTERM, term.clone())?;
+    signal_hook::flag::register(signal_hook::consts::SIGINT, int.clone())?;
+    // The loader polls `stop` between cases; either signal sets it.
+    let stop = Arc::new(AtomicBool::new(false));
+    signal_hook::flag::register(signal_hook::consts::SIGTERM, stop.clone())?;
+    signal_hook::flag::register(signal_hook::consts::SIGINT, stop.clone())?;
+    let total = cases.len();
+    let ids: Vec<String> = cases.iter().map(|c| c.id.clone()).collect();
+    let started = std::time::Instant::now();
+    let mut last_log = std::time::Instant::now();
+    let (mut done, mut failed, mut skipped) = (0usize, 0usize, 0usize);
+    eprintln!(
+        "[{}] destair: {total} cases, {} worker(s), {} threads",
+        clock(),
+        plan.workers,
+        rayon::current_num_threads()
+    );
+    let mut on_event = |e: Event| {
+        match e {
+            Event::CaseDone {
+                id,
+                failed: f,
+                skipped: s,
+            } => {
+                done += 1;
+                failed += f as usize;
+                skipped += s as usize;
+                if f {
+                    eprintln!("[{}] case {id} failed (see its report.json)", clock());
+                }
+            }
+            Event::WriteFailed { id, error } => {
+                done += 1;
+                failed += 1;
+                eprintln!("[{}] case {id}: cannot write outputs: {error}", clock());
+            }
+        }
+        if last_log.elapsed().as_secs_f64() >= 5.0 || done == total {
+            let rate = done as f64 / started.elapsed().as_secs_f64().max(1e-9);
+            let eta = (total - done) as f64 / rate.max(1e-9);
+            eprintln!(
+                "[{}] {done}/{total} cases ({failed} failed, {skipped} already done), {:.1} cases/min, ETA {:.0} s",
+                clock(),
+                60.0 * rate,
+                eta
+            );
+            last_log = std::time::Instant::now();
+        }
+    };
+    let result = run(plan, cases, &RunOptions { force }, &stop, &mut on_event);
+    if write_summary && result.not_started == 0 {
+        let reports: Vec<_> = ids
+            .iter()
+            .filter_map(|id| {
+                let path = destair::job::pipeline::case_dir(plan, id).join("report.json");
+                destair::job::summary::read_case_rows(&path).ok()
+            })
+            .collect();
+        let summary = destair::job::summary::summarize(reports, Some(&ids));
+        destair::job::summary::write_summary(&plan.output_root, &summary)?;
+        eprintln!(
+            "[{}] summary: {}",
+            clock(),
+            plan.output_root.join("summary.csv").display()
+        );
+    }
+    if term.load(Ordering::Relaxed) {
+        eprintln!(
+            "[{}] stopped by SIGTERM: {} cases not started; rerun to continue",
+            clock(),
+            result.not_started
+        );
+        return Err(Interrupted(15).into());
+    }
+    if int.load(Ordering::Relaxed) {
+        eprintln!(
+            "[{}] stopped by SIGINT: {} cases not started; rerun to continue",
+            clock(),
+            result.not_started
+        );
+        return Err(Interrupted(2).into());
+    }
+    if !result.failed.is_empty() {
+        return Err(CasesFailed(format!(
+            "{} of {total} cases failed: {}",
+            result.failed.len(),
+            result.failed.join(", ")
+        ))
+        .into());
+    }
+    Ok(())
+}
+
 fn run(command: Command) -> anyhow::Result<()> {
     match command {
+        Command::Run {
+            config,
+            shard,
+            force,
+        } => {
+            let plan = load_plan(&config)?;
+            let shard = shard_of(&shard)?;
+            let found = destair::job::discover(&plan);
+            for w in &found.warnings {
+                eprintln!("warning: {w}");
+            }
+            let cases: Vec<_> = found
+                .cases
+                .into_iter()
+                .filter(|c| shard.is_none_or(|s| s.contains(&c.id)))
+                .collect();
+            if let Some(s) = shard {
+                eprintln!(
+                    "shard {}/{}: {} cases; run `destair summarize {}` when all shards are done",
+                    s.index,
+                    s.count,
+                    cases.len(),
+                    plan.output_root.display()
+                );
+            }
+            run_cases(&plan, cases, force, shard.is_none())?;
+        }
+        Command::RunCase {
+            case_dir,
+            config,
+            out,
+            force,
+        } => {
+            let mut plan = load_plan(&config)?;
+            plan.output_root = out;
+            let dir = case_dir
+                .canonicalize()
+                .map_err(|e| UsageError(format!("{}: {e}", case_dir.display())))?;
+            let mut probe = plan.clone();
+            probe.roots = vec![dir
+                .parent()
+                .map(std::path::Path::to_path_buf)
+                .unwrap_or_default()];
+            probe.case_depth = Some(1);
+            let name = dir
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            let case = destair::job::discover(&probe)
+                .cases
+                .into_iter()
+                .find(|c| c.id == name)
+                .ok_or_else(|| {
+                    UsageError(format!("{}: no meshes in this folder", case_dir.display()))
+                })?;
+            run_cases(&plan, vec![case], force, false)?;
+        }
+        Command::Check { config } => {
+            let plan = load_plan(&config)?;
+            let found = destair::job::discover(&plan);
+            for w in &found.warnings {
+                println!("warning: {w}");
+            }
+            let names: std::collections::BTreeSet<&str> = found
+                .cases
+                .iter()
+                .flat_map(|c| c.meshes.iter().map(|(n, _)| n.as_str()))
+                .collect();
+            println!(
+                "{}: valid; {} cases, {} structure names; output to {}",
+                config.display(),
+                found.cases.len(),
+                names.len(),
+                plan.output_root.display()
+            );
+            for n in names {
+                let tables = plan.matching_tables(n);
+                println!(
+                    "\n[{n}] (from [defaults]{})",
+                    tables
+                        .iter()
+                        .map(|t| format!(" + [[structure]] {t:?}"))
+                        .collect::<String>()
+                );
+                println!("{}", serde_json::to_string_pretty(&plan.settings_for(n))?);
+            }
+        }
+        Command::List {
+            config,
+            jsonl,
+            shard,
+        } => {
+            let plan = load_plan(&config)?;
+            let shard = shard_of(&shard)?;
+            let found = destair::job::discover(&plan);
+            for w in &found.warnings {
+                eprintln!("warning: {w}");
+            }
+            for c in found
+                .cases
+                .iter()
+                .filter(|c| shard.is_none_or(|s| s.contains(&c.id)))
+            {
+                let structures: Vec<&str> = c.meshes.iter().map(|(n, _)| n.as_str()).collect();
+                if jsonl {
+                    println!(
+                        "{}",
+                        serde_json::json!({ "case": c.id, "dir": c.dir, "structures": structures })
+                    );
+                } else {
+                    println!("{}\t{}\t{}", c.id, c.dir.display(), structures.join(","));
+                }
+            }
+        }
+        Command::Summarize { out_dirs, config } => {
+            let expected = match &config {
+                Some(c) => Some(
+                    destair::job::discover(&load_plan(c)?)
+                        .cases
+                        .into_iter()
+                        .map(|c| c.id)
+                        .collect::<Vec<_>>(),
+                ),
+                None => None,
+            };
+            let (reports, problems) = destair::job::summary::collect_reports(&out_dirs);
+            for p in &problems {
+                eprintln!("warning: {p}");
+            }
+            let summary = destair::job::summary::summarize(reports, expected.as_deref());
+            destair::job::summary::write_summary(&out_dirs[0], &summary)?;
+            println!(
+                "{} cases: {} ok, {} failed, {} missing, {} duplicated -> {}",
+                summary.n_cases,
+                summary.n_ok,
+                summary.failed.len(),
+                summary.missing.len(),
+                summary.duplicates.len(),
+                out_dirs[0].join("summary.csv").display()
+            );
+            for (what, list) in [
+                ("failed", &summary.failed),
+                ("missing", &summary.missing),
+                ("duplicated", &summary.duplicates),
+            ] {
+                if !list.is_empty() {
+                    println!("{what}: {}", list.join(", "));
+                }
+            }
+            if !(summary.failed.is_empty()
+                && summary.missing.is_empty()
+                && summary.duplicates.is_empty())
+            {
+                return Err(CasesFailed("the cohort is not complete".into()).into());
+            }
+        }
+        Command::Demo { dir, cases } => {
+            let cases_dir = dir.join("cases");
+            for i in 0..cases {
+                let case = destair::phantom::cohort_case(i, 0);
+                destair::phantom::write_case(&case, &cases_dir.join(&case.info.name))?;
+            }
+            let config = dir.join("demo.toml");
+            destair::io::write_atomically(&config, |w| {
+                w.write_all(include_str!("../config/demo.toml").as_bytes())
+            })?;
+            eprintln!(
+                "[{}] demo cohort of {cases} cases in {}; running {}",
+                clock(),
+                cases_dir.display(),
+                config.display()
+            );
+            let plan = load_plan(&config)?;
+            let found = destair::job::discover(&plan);
+            run_cases(&plan, found.cases, false, true)?;
+            println!("outputs and reports: {}", plan.output_root.display());
+        }
         Command::Inspect {
             mesh,
             json,
@@ -531,16 +870,12 @@ fn run(command: Command) -> anyhow::Result<()> {
             staircase,
             ctx,
         } => {
-            use destair::smooth::{boundary_vertices, smooth, Method};
+            use destair::smooth::{boundary_vertices, smooth};
             ctx.check()?;
             let loaded = read_mesh(&input, &ReadOptions::default()).map_err(InputError)?;
             let mesh = &loaded.mesh;
             let topology = destair::Topology::build(mesh);
-            let needs_voxel = matches!(
-                method,
-                MethodArg::Npc | MethodArg::CellSize | MethodArg::CellEdge | MethodArg::Diamond
-            );
-            let voxel = match (voxel, needs_voxel) {
+            let voxel = match (voxel, method.needs_voxel()) {
                 (Some(v), _) => v,
                 (None, false) => [1.0; 3],
                 (None, true) => {
@@ -554,35 +889,16 @@ fn run(command: Command) -> anyhow::Result<()> {
                     s.map(|x| x as f32)
                 }
             };
-            let relax_lambda = lambda.unwrap_or(1.0);
-            let lambda = lambda.unwrap_or(0.5);
-            let method = match method {
-                MethodArg::Laplace => Method::Laplace { lambda },
-                MethodArg::Hc => Method::Hc {
-                    lambda,
-                    alpha,
-                    beta,
-                },
-                MethodArg::Taubin => Method::Taubin { lambda, mu },
-                MethodArg::Mcf => Method::Mcf { lambda },
-                MethodArg::Npc => Method::Npc { lambda, voxel },
-                MethodArg::CellSize => Method::CellSize {
-                    lambda: relax_lambda,
-                    voxel,
-                    threshold,
-                },
-                MethodArg::CellEdge => Method::CellEdge {
-                    lambda: relax_lambda,
-                    voxel,
-                    threshold,
-                },
-                MethodArg::Diamond => Method::Diamond {
-                    lambda: relax_lambda,
-                    voxel,
-                    threshold,
-                },
+            let params = destair::smooth::MethodParams {
+                lambda,
+                mu,
+                alpha,
+                beta,
+                threshold,
             };
-            let iterations = iterations.unwrap_or(if method.is_relaxation() { 1000 } else { 20 });
+            let kind = method;
+            let method = kind.build(&params, voxel);
+            let iterations = iterations.unwrap_or(kind.default_iterations());
             let context_on = staircase || !ctx.references.is_empty();
             let weights = match weights {
                 None if context_on => {

@@ -33,6 +33,21 @@ where
     Ok(())
 }
 
+/// Removes temp files that writes cut short by a killed process left in `dir`.
+pub fn remove_stale_temp_files(dir: &Path) -> std::io::Result<()> {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Ok(());
+    };
+    for e in entries.flatten() {
+        let name = e.file_name();
+        let name = name.to_string_lossy();
+        if name.starts_with(".destair-") && name.ends_with(".tmp") && e.path().is_file() {
+            std::fs::remove_file(e.path())?;
+        }
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

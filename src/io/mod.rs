@@ -10,7 +10,7 @@ pub mod ply;
 pub mod stl;
 mod text;
 
-pub use atomic::write_atomically;
+pub use atomic::{remove_stale_temp_files, write_atomically};
 
 use crate::mesh::{Mesh, MeshError};
 use std::path::{Path, PathBuf};
@@ -180,7 +180,19 @@ pub fn decode_mesh(
     Ok(loaded)
 }
 
-fn extension(path: &Path) -> Option<String> {
+/// Runs `f` over the bytes of a file, mapped or read as `mode` says; the bytes are released
+/// when `f` returns. For callers that need more than a decode (a content hash, say).
+pub fn with_file_bytes<T>(
+    path: &Path,
+    mode: ReadMode,
+    f: impl FnOnce(&[u8]) -> T,
+) -> std::io::Result<T> {
+    let bytes = FileBytes::open(path, mode)?;
+    Ok(f(&bytes))
+}
+
+/// Lower-case extension of a path, as `decode_mesh` takes it.
+pub fn extension(path: &Path) -> Option<String> {
     Some(path.extension()?.to_str()?.to_ascii_lowercase())
 }
 

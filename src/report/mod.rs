@@ -1,2 +1,3 @@
+pub mod case;
 pub mod compare;
 pub mod inspect;

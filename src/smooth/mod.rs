@@ -80,6 +80,114 @@ impl Method {
     }
 }
 
+/// A smoother by name, before its parameters are filled in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MethodKind {
+    Laplace,
+    Hc,
+    Taubin,
+    Mcf,
+    Npc,
+    CellSize,
+    CellEdge,
+    Diamond,
+}
+
+impl std::str::FromStr for MethodKind {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        Ok(match s {
+            "laplace" => MethodKind::Laplace,
+            "hc" => MethodKind::Hc,
+            "taubin" => MethodKind::Taubin,
+            "mcf" => MethodKind::Mcf,
+            "npc" => MethodKind::Npc,
+            "cell-size" => MethodKind::CellSize,
+            "cell-edge" => MethodKind::CellEdge,
+            "diamond" => MethodKind::Diamond,
+            other => {
+                return Err(format!(
+                    "unknown method {other:?} (laplace, hc, taubin, mcf, npc, cell-size, cell-edge, diamond)"
+                ))
+            }
+        })
+    }
+}
+
+/// Parameters common to the smoothers; `None` takes each method's default.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct MethodParams {
+    /// Step factor (default 0.5; 1 for the constrained relaxations).
+    pub lambda: Option<f32>,
+    /// Taubin's negative factor (default -0.53).
+    pub mu: Option<f32>,
+    /// Laplace+HC alpha (default 0) and beta (default 0.5).
+    pub alpha: Option<f32>,
+    pub beta: Option<f32>,
+    /// Relaxation stopping threshold in mm (default 0.002).
+    pub threshold: Option<f32>,
+}
+
+impl MethodKind {
+    /// Whether the method needs the voxel size.
+    pub fn needs_voxel(self) -> bool {
+        matches!(
+            self,
+            MethodKind::Npc | MethodKind::CellSize | MethodKind::CellEdge | MethodKind::Diamond
+        )
+    }
+
+    /// The method with its parameters (defaults where not given); `voxel` in mm.
+    pub fn build(self, p: &MethodParams, voxel: [f32; 3]) -> Method {
+        let lambda = p.lambda.unwrap_or(0.5);
+        let relax = p.lambda.unwrap_or(1.0);
+        let threshold = p.threshold.unwrap_or(0.002);
+        match self {
+            MethodKind::Laplace => Method::Laplace { lambda },
+            MethodKind::Hc => Method::Hc {
+                lambda,
+                alpha: p.alpha.unwrap_or(0.0),
+                beta: p.beta.unwrap_or(0.5),
+            },
+            MethodKind::Taubin => Method::Taubin {
+                lambda,
+                mu: p.mu.unwrap_or(-0.53),
+            },
+            MethodKind::Mcf => Method::Mcf { lambda },
+            MethodKind::Npc => Method::Npc { lambda, voxel },
+            MethodKind::CellSize => Method::CellSize {
+                lambda: relax,
+                voxel,
+                threshold,
+            },
+            MethodKind::CellEdge => Method::CellEdge {
+                lambda: relax,
+                voxel,
+                threshold,
+            },
+            MethodKind::Diamond => Method::Diamond {
+                lambda: relax,
+                voxel,
+                threshold,
+            },
+        }
+    }
+
+    /// Default iteration count (the maximum for relaxations).
+    pub fn default_iterations(self) -> usize {
+        if matches!(
+            self,
+            MethodKind::CellSize | MethodKind::CellEdge | MethodKind::Diamond
+        ) {
+            1000
+        } else {
+            20
+        }
+    }
+}
+
 /// What a smoothing run did.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct SmoothStats {

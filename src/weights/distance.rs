@@ -21,6 +21,43 @@ pub enum DistanceScaling {
     Ramp { d0_mm: f32, d1_mm: f32 },
 }
 
+impl std::str::FromStr for DistanceScaling {
+    type Err = String;
+
+    /// Parses `linear`, `margin:MM`, `exp:K` or `ramp:D0,D1` (mm).
+    fn from_str(s: &str) -> Result<Self, String> {
+        let number = |x: &str| {
+            x.trim()
+                .parse::<f32>()
+                .ok()
+                .filter(|v| v.is_finite() && *v >= 0.0)
+        };
+        let bad = || format!("expected linear, margin:MM, exp:K or ramp:D0,D1, got {s:?}");
+        match s.split_once(':') {
+            None if s == "linear" => Ok(DistanceScaling::Linear),
+            Some(("margin", m)) => Ok(DistanceScaling::SafetyMargin {
+                margin_mm: number(m).ok_or_else(bad)?,
+            }),
+            Some(("exp", k)) => Ok(DistanceScaling::Exponential {
+                k: k.trim()
+                    .parse::<f32>()
+                    .ok()
+                    .filter(|v| v.is_finite())
+                    .ok_or_else(bad)?,
+            }),
+            Some(("ramp", r)) => {
+                let (a, b) = r.split_once(',').ok_or_else(bad)?;
+                let (d0_mm, d1_mm) = (number(a).ok_or_else(bad)?, number(b).ok_or_else(bad)?);
+                if d1_mm <= d0_mm {
+                    return Err(format!("ramp needs D0 < D1, got {s:?}"));
+                }
+                Ok(DistanceScaling::Ramp { d0_mm, d1_mm })
+            }
+            _ => Err(bad()),
+        }
+    }
+}
+
 /// Minimum distance (mm) from each vertex of `mesh` to the nearest of the reference surfaces.
 pub fn reference_distances(mesh: &Mesh, references: &[&TriangleGrid]) -> Vec<f64> {
     let mut best = vec![f64::INFINITY; mesh.n_vertices()];

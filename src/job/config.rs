@@ -1,0 +1,208 @@
+//! The cohort configuration file (TOML): where the cases are, where outputs go, and the smoothing
+//! settings per structure. Unknown keys are rejected with their line and column; the file is
+//! turned once into a [`Plan`](super::plan::Plan) that the rest of the runner consumes.
+
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+use thiserror::Error;
+
+/// A configuration file that cannot be used.
+#[derive(Debug, Error)]
+pub enum ConfigError {
+    #[error("{}: cannot read: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{}:{line}:{column}: {message}", path.display())]
+    Syntax {
+        path: PathBuf,
+        line: usize,
+        column: usize,
+        message: String,
+    },
+    #[error("{}: {message}", path.display())]
+    Invalid { path: PathBuf, message: String },
+}
+
+/// `[input]`: where the cases are and how a case is recognised.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InputConfig {
+    /// Folders holding the cases, relative to the config file.
+    pub roots: Vec<PathBuf>,
+    /// Cases are the folders at this depth below a root (1 = its subfolders); without it,
+    /// every folder that directly contains mesh files is a case.
+    pub case_depth: Option<usize>,
+    /// File extensions of meshes (lower case, no dot).
+    #[serde(default = "default_extensions")]
+    pub extensions: Vec<String>,
+}
+
+fn default_extensions() -> Vec<String> {
+    vec!["ply".into(), "stl".into(), "obj".into()]
+}
+
+/// `[output]`: where results go.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputConfig {
+    /// Output folder, relative to the config file.
+    pub root: PathBuf,
+    /// Mesh formats to write for every structure: "ply", "stl".
+    #[serde(default = "default_formats")]
+    pub formats: Vec<String>,
+    /// Add `weight` and `displacement` vertex properties to PLY outputs.
+    #[serde(default)]
+    pub annotate: bool,
+}
+
+fn default_formats() -> Vec<String> {
+    vec!["ply".into()]
+}
+
+/// `[run]`: resources.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RunConfig {
+    /// Cases processed at the same time (default 1; each uses all threads inside).
+    pub workers: Option<usize>,
+    /// Upper bound on the input bytes of the cases in flight, in MB (default 1024).
+    pub memory_budget_mb: Option<u64>,
+    /// Read with plain reads instead of memory maps (network filesystems).
+    #[serde(default)]
+    pub plain_read: bool,
+}
+
+/// Smoothing settings; every key optional so `[[structure]]` tables override only what they name.
+#[derive(Debug, Clone, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Settings {
+    /// laplace, hc, taubin, mcf, npc, cell-size, cell-edge, diamond.
+    pub method: Option<String>,
+    pub iterations: Option<usize>,
+    pub lambda: Option<f32>,
+    pub mu: Option<f32>,
+    pub alpha: Option<f32>,
+    pub beta: Option<f32>,
+    /// Relaxation stopping threshold (mm).
+    pub threshold: Option<f32>,
+    /// Voxel size [x, y, z] in mm (default: reconstructed from the mesh when needed).
+    pub voxel: Option<[f32; 3]>,
+    /// Staircase-aware weighting.
+    pub staircase: Option<bool>,
+    /// "auto" or [x, y, z].
+    pub axis: Option<toml::Value>,
+    pub tau: Option<f32>,
+    pub tau_max: Option<f32>,
+    pub beta_min: Option<f32>,
+    /// "preserve" or "smooth".
+    pub caps: Option<String>,
+    /// Structure names (in the same case) whose distance must be preserved.
+    pub references: Option<Vec<String>>,
+    /// "linear", "margin:MM", "exp:K", "ramp:D0,D1".
+    pub distance_scaling: Option<String>,
+    /// "product" or "min".
+    pub combine: Option<String>,
+    /// Let open-boundary vertices move.
+    pub move_boundary: Option<bool>,
+    /// Copy the structure unchanged (it can still be a reference).
+    pub skip: Option<bool>,
+}
+
+/// One `[[structure]]` table: settings for structures whose name matches `pattern`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StructureConfig {
+    /// Glob on the structure name (the mesh file stem), e.g. "vein*".
+    pub pattern: String,
+    #[serde(flatten)]
+    pub settings: Settings,
+}
+
+/// The whole configuration file.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Config {
+    pub input: InputConfig,
+    pub output: OutputConfig,
+    #[serde(default)]
+    pub run: RunConfig,
+    #[serde(default)]
+    pub defaults: Settings,
+    #[serde(default, rename = "structure")]
+    pub structures: Vec<StructureConfig>,
+}
+
+impl Config {
+    /// Reads and parses a configuration file.
+    pub fn load(path: &Path) -> Result<Config, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::parse(&text, path)
+    }
+
+    /// Parses configuration text; `path` is used in messages.
+    pub fn parse(text: &str, path: &Path) -> Result<Config, ConfigError> {
+        toml::from_str(text).map_err(|e| {
+            let (line, column) = e.span().map_or((0, 0), |s| line_column(text, s.start));
+            ConfigError::Syntax {
+                path: path.to_path_buf(),
+                line,
+                column,
+                message: e.message().to_string(),
+            }
+        })
+    }
+}
+
+/// 1-based line and column of a byte offset.
+fn line_column(text: &str, offset: usize) -> (usize, usize) {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let column = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
+    (line, column)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unknown_keys_are_rejected_with_their_place() {
+        let text = "[input]\nroots = [\"cases\"]\n\n[output]\nroot = \"out\"\n\n[defaults]\nmethod = \"hc\"\nlamda = 0.5\n";
+        let err = Config::parse(text, Path::new("cohort.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.starts_with("cohort.toml:9:1:"), "{err}");
+        assert!(err.contains("lamda"), "{err}");
+    }
+
+    #[test]
+    fn structures_override_defaults() {
+        let text = r#"
+[input]
+roots = ["cases"]
+case_depth = 1
+[output]
+root = "out"
+formats = ["ply", "stl"]
+[defaults]
+method = "hc"
+staircase = true
+[[structure]]
+pattern = "vein*"
+references = ["tumor"]
+distance_scaling = "margin:2"
+"#;
+        let c = Config::parse(text, Path::new("c.toml")).unwrap();
+        assert_eq!(c.structures[0].pattern, "vein*");
+        assert_eq!(
+            c.structures[0].settings.references.as_deref(),
+            Some(&["tumor".to_string()][..])
+        );
+        assert_eq!(c.defaults.method.as_deref(), Some("hc"));
+    }
+}

@@ -1,0 +1,262 @@
+//! Finding the cases of a cohort: sorted and deterministic, following symlinks (workflow engines
+//! stage inputs as links), with loops and unreadable folders reported rather than fatal.
+
+use super::plan::Plan;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// One case: a folder and its structure meshes.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct CaseInput {
+    /// Path of the case folder relative to its root, with `/` separators ("." for the root).
+    pub id: String,
+    pub dir: PathBuf,
+    /// (structure name = file stem, file), sorted by name.
+    pub meshes: Vec<(String, PathBuf)>,
+    /// Problems found while listing (duplicate structure names).
+    pub problems: Vec<String>,
+}
+
+/// The cases of a plan, and what could not be read while looking for them.
+#[derive(Debug, Clone, Default)]
+pub struct Discovery {
+    pub cases: Vec<CaseInput>,
+    pub warnings: Vec<String>,
+}
+
+fn is_mesh(plan: &Plan, path: &Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| plan.extensions.iter().any(|x| x.eq_ignore_ascii_case(e)))
+}
+
+/// Mesh files directly in `dir`, sorted by name.
+fn case_meshes(plan: &Plan, dir: &Path, warnings: &mut Vec<String>) -> Vec<PathBuf> {
+    let mut files = Vec::new();
+    for entry in walkdir::WalkDir::new(dir)
+        .min_depth(1)
+        .max_depth(1)
+        .follow_links(true)
+        .sort_by_file_name()
+    {
+        match entry {
+            Ok(e) if e.file_type().is_file() && is_mesh(plan, e.path()) => {
+                files.push(e.path().to_path_buf())
+            }
+            Ok(_) => {}
+            Err(e) => warnings.push(format!("{}: {e}", dir.display())),
+        }
+    }
+    files
+}
+
+/// Lists the cases of all roots.
+pub fn discover(plan: &Plan) -> Discovery {
+    let mut out = Discovery::default();
+    let mut seen = std::collections::BTreeSet::new();
+    for root in &plan.roots {
+        if !root.is_dir() {
+            out.warnings
+                .push(format!("{}: input root is not a folder", root.display()));
+            continue;
+        }
+        let mut walker = walkdir::WalkDir::new(root)
+            .follow_links(true)
+            .sort_by_file_name();
+        if let Some(depth) = plan.case_depth {
+            walker = walker.min_depth(depth).max_depth(depth);
+        }
+        for entry in walker {
+            let entry = match entry {
+                Ok(e) => e,
+                Err(e) => {
+                    out.warnings.push(format!("{}: {e}", root.display()));
+                    continue;
+                }
+            };
+            if !entry.file_type().is_dir() {
+                continue;
+            }
+            let files = case_meshes(plan, entry.path(), &mut out.warnings);
+            if files.is_empty() {
+                if plan.case_depth.is_some() {
+                    out.warnings.push(format!(
+                        "{}: case folder holds no meshes",
+                        entry.path().display()
+                    ));
+                }
+                continue;
+            }
+            let rel = entry.path().strip_prefix(root).unwrap_or(entry.path());
+            let id = if rel.as_os_str().is_empty() {
+                ".".to_string()
+            } else {
+                rel.components()
+                    .map(|c| c.as_os_str().to_string_lossy().into_owned())
+                    .collect::<Vec<_>>()
+                    .join("/")
+            };
+            if !seen.insert(id.clone()) {
+                out.warnings.push(format!(
+                    "{}: case {id:?} also exists under another root; skipped",
+                    entry.path().display()
+                ));
+                continue;
+            }
+            let mut meshes: Vec<(String, PathBuf)> = Vec::new();
+            let mut problems = Vec::new();
+            for f in files {
+                let name = f
+                    .file_stem()
+                    .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+                if meshes.iter().any(|(n, _)| *n == name) {
+                    problems.push(format!(
+                        "two meshes for structure {name:?}: {} is ignored",
+                        f.display()
+                    ));
+                    continue;
+                }
+                meshes.push((name, f));
+            }
+            out.cases.push(CaseInput {
+                id,
+                dir: entry.path().to_path_buf(),
+                meshes,
+                problems,
+            });
+        }
+    }
+    out
+}
+
+/// A share of the cases for one of `count` parallel runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Shard {
+    /// 0-based index.
+    pub index: u64,
+    pub count: u64,
+}
+
+impl Shard {
+    /// Whether a case belongs to this shard. The choice depends only on the case id (a hash),
+    /// so adding cases to a cohort never moves existing ones to another shard.
+    pub fn contains(&self, case_id: &str) -> bool {
+        let h = blake3::hash(case_id.as_bytes());
+        let v = u64::from_le_bytes(h.as_bytes()[..8].try_into().unwrap_or([0; 8]));
+        v % self.count == self.index
+    }
+
+    /// Parses `I/N` (0 <= I < N).
+    pub fn parse(s: &str) -> Result<Shard, String> {
+        let (i, n) = s
+            .split_once('/')
+            .ok_or_else(|| format!("expected I/N or `slurm`, got {s:?}"))?;
+        let index: u64 = i
+            .trim()
+            .parse()
+            .map_err(|_| format!("shard index {i:?} is not a number"))?;
+        let count: u64 = n
+            .trim()
+            .parse()
+            .map_err(|_| format!("shard count {n:?} is not a number"))?;
+        if count == 0 || index >= count {
+            return Err(format!("shard {s:?}: need 0 <= I < N"));
+        }
+        Ok(Shard { index, count })
+    }
+
+    /// The shard of a Slurm array task, from SLURM_ARRAY_TASK_ID/MIN/MAX/STEP/COUNT (read through
+    /// `var`). Index (ID - MIN) / STEP of COUNT. List-form arrays (`--array=1,4,10`) report STEP 1
+    /// and would give wrong indexes, so inconsistent values are refused rather than guessed.
+    pub fn from_slurm(var: impl Fn(&str) -> Option<String>) -> Result<Shard, String> {
+        let get = |name: &str| -> Result<u64, String> {
+            let v = var(name)
+                .ok_or_else(|| format!("{name} is not set (not inside a Slurm job array?)"))?;
+            v.trim()
+                .parse()
+                .map_err(|_| format!("{name}={v:?} is not a number"))
+        };
+        let (id, min, max, count) = (
+            get("SLURM_ARRAY_TASK_ID")?,
+            get("SLURM_ARRAY_TASK_MIN")?,
+            get("SLURM_ARRAY_TASK_MAX")?,
+            get("SLURM_ARRAY_TASK_COUNT")?,
+        );
+        let step = match var("SLURM_ARRAY_TASK_STEP") {
+            Some(_) => get("SLURM_ARRAY_TASK_STEP")?,
+            None => 1,
+        };
+        if step == 0
+            || id < min
+            || (id - min) % step != 0
+            || max < min
+            || (max - min) / step + 1 != count
+        {
+            return Err(format!(
+                "Slurm array ID={id} MIN={min} MAX={max} STEP={step} COUNT={count} is not a range a-b:s \
+                 (list forms like --array=1,4,10 cannot be mapped to shards); use --shard I/N"
+            ));
+        }
+        Ok(Shard {
+            index: (id - min) / step,
+            count,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shards_partition_the_cases() {
+        let ids: Vec<String> = (0..500).map(|i| format!("case-{i:03}")).collect();
+        for n in [1, 2, 3, 7] {
+            let mut seen = vec![0; ids.len()];
+            for i in 0..n {
+                let s = Shard { index: i, count: n };
+                for (k, id) in ids.iter().enumerate() {
+                    seen[k] += s.contains(id) as usize;
+                }
+            }
+            assert!(seen.iter().all(|&c| c == 1));
+        }
+        assert!(
+            Shard::parse("2/2").is_err()
+                && Shard::parse("1/2").is_ok()
+                && Shard::parse("x").is_err()
+        );
+    }
+
+    #[test]
+    fn slurm_ranges_and_lists() {
+        let env = |pairs: &'static [(&'static str, &'static str)]| {
+            move |k: &str| {
+                pairs
+                    .iter()
+                    .find(|(n, _)| *n == k)
+                    .map(|(_, v)| v.to_string())
+            }
+        };
+        // --array=3-11:4 -> tasks 3, 7, 11; task 7 is index 1 of 3.
+        let s = Shard::from_slurm(env(&[
+            ("SLURM_ARRAY_TASK_ID", "7"),
+            ("SLURM_ARRAY_TASK_MIN", "3"),
+            ("SLURM_ARRAY_TASK_MAX", "11"),
+            ("SLURM_ARRAY_TASK_STEP", "4"),
+            ("SLURM_ARRAY_TASK_COUNT", "3"),
+        ]))
+        .unwrap();
+        assert_eq!(s, Shard { index: 1, count: 3 });
+        // --array=1,4,10 reports STEP 1, MIN 1, MAX 10, COUNT 3: refused.
+        assert!(Shard::from_slurm(env(&[
+            ("SLURM_ARRAY_TASK_ID", "4"),
+            ("SLURM_ARRAY_TASK_MIN", "1"),
+            ("SLURM_ARRAY_TASK_MAX", "10"),
+            ("SLURM_ARRAY_TASK_STEP", "1"),
+            ("SLURM_ARRAY_TASK_COUNT", "3")
+        ]))
+        .is_err());
+        assert!(Shard::from_slurm(env(&[])).is_err());
+    }
+}

@@ -1,0 +1,13 @@
+//! The cohort runner: configuration, plan, discovery, sharding, per-case processing, the
+//! streaming pipeline, resume manifests and the cohort summary.
+
+pub mod case;
+pub mod config;
+pub mod discover;
+pub mod pipeline;
+pub mod plan;
+pub mod summary;
+
+pub use config::{Config, ConfigError};
+pub use discover::{discover, CaseInput, Discovery, Shard};
+pub use plan::{Plan, StructureSettings};

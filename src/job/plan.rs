@@ -1,0 +1,353 @@
+//! The validated plan: the configuration resolved into absolute paths, output formats, resource
+//! limits and, for any structure name, its effective settings. Built once; everything after
+//! consumes it and never sees raw TOML.
+
+use super::config::{Config, ConfigError, Settings};
+use crate::io::{OutputFormat, ReadMode};
+use crate::smooth::{MethodKind, MethodParams};
+use crate::weights::{
+    AxisChoice, CapPolicy, Combine, ContextParams, DistanceScaling, StaircaseParams,
+};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// Everything that decides how one structure is processed.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StructureSettings {
+    pub method: MethodKind,
+    pub params: MethodParams,
+    pub iterations: usize,
+    /// Voxel size (mm); reconstructed from the mesh when not given and the method needs it.
+    pub voxel: Option<[f32; 3]>,
+    pub context: ContextParams,
+    /// Structures of the same case whose distance must be preserved.
+    pub references: Vec<String>,
+    pub move_boundary: bool,
+    /// Copied unchanged (still usable as a reference).
+    pub skip: bool,
+}
+
+/// The resolved configuration.
+#[derive(Debug, Clone)]
+pub struct Plan {
+    pub config_path: PathBuf,
+    pub roots: Vec<PathBuf>,
+    pub case_depth: Option<usize>,
+    pub extensions: Vec<String>,
+    pub output_root: PathBuf,
+    pub formats: Vec<OutputFormat>,
+    pub annotate: bool,
+    pub workers: usize,
+    pub memory_budget_bytes: u64,
+    pub read_mode: ReadMode,
+    defaults: Settings,
+    structures: Vec<(String, glob::Pattern, Settings)>,
+}
+
+/// Later settings override earlier ones key by key.
+fn overlay(base: &Settings, over: &Settings) -> Settings {
+    macro_rules! pick {
+        ($($f:ident),*) => { Settings { $($f: over.$f.clone().or_else(|| base.$f.clone()),)* } };
+    }
+    pick!(
+        method,
+        iterations,
+        lambda,
+        mu,
+        alpha,
+        beta,
+        threshold,
+        voxel,
+        staircase,
+        axis,
+        tau,
+        tau_max,
+        beta_min,
+        caps,
+        references,
+        distance_scaling,
+        combine,
+        move_boundary,
+        skip
+    )
+}
+
+/// Turns merged settings into effective ones, with defaults for what is unset.
+fn resolve(s: &Settings) -> Result<StructureSettings, String> {
+    let method: MethodKind = s.method.as_deref().unwrap_or("hc").parse()?;
+    let unit = |name: &str, v: Option<f32>| -> Result<Option<f32>, String> {
+        match v {
+            Some(x) if !(0.0..=1.0).contains(&x) => Err(format!("{name} = {x} must lie in [0, 1]")),
+            other => Ok(other),
+        }
+    };
+    let positive = |name: &str, v: Option<f32>| -> Result<Option<f32>, String> {
+        match v {
+            Some(x) if !(x.is_finite() && x > 0.0) => Err(format!("{name} = {x} must be positive")),
+            other => Ok(other),
+        }
+    };
+    let axis = match &s.axis {
+        None => AxisChoice::Auto,
+        Some(toml::Value::String(a)) if a == "auto" => AxisChoice::Auto,
+        Some(toml::Value::Array(a)) if a.len() == 3 => {
+            let v: Vec<f32> = a
+                .iter()
+                .map(|x| {
+                    x.as_float()
+                        .or_else(|| x.as_integer().map(|i| i as f64))
+                        .map(|f| f as f32)
+                })
+                .collect::<Option<_>>()
+                .ok_or("axis must be \"auto\" or three numbers")?;
+            if v.iter().all(|x| *x == 0.0) || v.iter().any(|x| !x.is_finite()) {
+                return Err("axis must not be zero".into());
+            }
+            AxisChoice::Given([v[0], v[1], v[2]])
+        }
+        Some(other) => return Err(format!("axis must be \"auto\" or [x, y, z], got {other}")),
+    };
+    if let Some(v) = s.voxel {
+        if v.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
+            return Err(format!("voxel = {v:?} must be three positive sizes in mm"));
+        }
+    }
+    let caps = match s.caps.as_deref() {
+        None | Some("preserve") => CapPolicy::Preserve,
+        Some("smooth") => CapPolicy::Smooth,
+        Some(other) => {
+            return Err(format!(
+                "caps = {other:?} must be \"preserve\" or \"smooth\""
+            ))
+        }
+    };
+    let combine = match s.combine.as_deref() {
+        None | Some("product") => Combine::Product,
+        Some("min") => Combine::Min,
+        Some(other) => {
+            return Err(format!(
+                "combine = {other:?} must be \"product\" or \"min\""
+            ))
+        }
+    };
+    let distance_scaling: DistanceScaling =
+        s.distance_scaling.as_deref().unwrap_or("linear").parse()?;
+    let defaults = StaircaseParams::default();
+    let staircase_params = StaircaseParams {
+        tau: unit("tau", s.tau)?.unwrap_or(defaults.tau),
+        tau_max_mm: positive("tau_max", s.tau_max)?.unwrap_or(defaults.tau_max_mm),
+        beta_min: unit("beta_min", s.beta_min)?.unwrap_or(defaults.beta_min),
+    };
+    Ok(StructureSettings {
+        method,
+        params: MethodParams {
+            lambda: s.lambda,
+            mu: s.mu,
+            alpha: s.alpha,
+            beta: s.beta,
+            threshold: positive("threshold", s.threshold)?,
+        },
+        iterations: s.iterations.unwrap_or(method.default_iterations()),
+        voxel: s.voxel,
+        context: ContextParams {
+            staircase: s.staircase.unwrap_or(true),
+            axis,
+            staircase_params,
+            caps,
+            cap_params: Default::default(),
+            distance_scaling,
+            combine,
+        },
+        references: s.references.clone().unwrap_or_default(),
+        move_boundary: s.move_boundary.unwrap_or(false),
+        skip: s.skip.unwrap_or(false),
+    })
+}
+
+impl Plan {
+    /// Validates a configuration (read from `path`) into a plan.
+    pub fn new(config: Config, path: &Path) -> Result<Plan, ConfigError> {
+        let invalid = |message: String| ConfigError::Invalid {
+            path: path.to_path_buf(),
+            message,
+        };
+        let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        let absolute = |p: &Path| {
+            if p.is_absolute() {
+                p.to_path_buf()
+            } else {
+                base.join(p)
+            }
+        };
+        if config.input.roots.is_empty() {
+            return Err(invalid("[input] roots is empty".into()));
+        }
+        if config.input.case_depth == Some(0) {
+            return Err(invalid("[input] case_depth must be at least 1".into()));
+        }
+        let formats = config
+            .output
+            .formats
+            .iter()
+            .map(|f| match f.as_str() {
+                "ply" => Ok(OutputFormat::Ply),
+                "stl" => Ok(OutputFormat::Stl),
+                other => Err(invalid(format!(
+                    "[output] formats: unknown format {other:?} (ply, stl)"
+                ))),
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        if formats.is_empty() {
+            return Err(invalid("[output] formats is empty".into()));
+        }
+        resolve(&config.defaults).map_err(|m| invalid(format!("[defaults]: {m}")))?;
+        let mut structures = Vec::new();
+        for (i, s) in config.structures.into_iter().enumerate() {
+            let pattern = glob::Pattern::new(&s.pattern).map_err(|e| {
+                invalid(format!(
+                    "[[structure]] #{} pattern {:?}: {e}",
+                    i + 1,
+                    s.pattern
+                ))
+            })?;
+            resolve(&overlay(&config.defaults, &s.settings))
+                .map_err(|m| invalid(format!("[[structure]] {:?}: {m}", s.pattern)))?;
+            structures.push((s.pattern, pattern, s.settings));
+        }
+        let workers = config.run.workers.unwrap_or(1);
+        if workers == 0 {
+            return Err(invalid("[run] workers must be at least 1".into()));
+        }
+        Ok(Plan {
+            config_path: path.to_path_buf(),
+            roots: config.input.roots.iter().map(|r| absolute(r)).collect(),
+            case_depth: config.input.case_depth,
+            extensions: config
+                .input
+                .extensions
+                .iter()
+                .map(|e| e.to_ascii_lowercase())
+                .collect(),
+            output_root: absolute(&config.output.root),
+            formats,
+            annotate: config.output.annotate,
+            workers,
+            memory_budget_bytes: config.run.memory_budget_mb.unwrap_or(1024).max(1) << 20,
+            read_mode: if config.run.plain_read {
+                ReadMode::Read
+            } else {
+                ReadMode::Mmap
+            },
+            defaults: config.defaults,
+            structures,
+        })
+    }
+
+    /// Loads and validates a configuration file.
+    pub fn load(path: &Path) -> Result<Plan, ConfigError> {
+        Plan::new(Config::load(path)?, path)
+    }
+
+    /// Effective settings for a structure: defaults, then every matching `[[structure]]` in order.
+    pub fn settings_for(&self, structure: &str) -> StructureSettings {
+        let merged = self
+            .structures
+            .iter()
+            .filter(|(_, p, _)| p.matches(structure))
+            .fold(self.defaults.clone(), |acc, (_, _, s)| overlay(&acc, s));
+        // Every table was resolved in `new`, and overlays of valid tables stay valid.
+        resolve(&merged)
+            .unwrap_or_else(|_| resolve(&Settings::default()).expect("built-in defaults are valid"))
+    }
+
+    /// Patterns of the `[[structure]]` tables that match a name, for `destair check`.
+    pub fn matching_tables(&self, structure: &str) -> Vec<&str> {
+        self.structures
+            .iter()
+            .filter(|(_, p, _)| p.matches(structure))
+            .map(|(s, _, _)| s.as_str())
+            .collect()
+    }
+
+    /// Hash of everything in the plan that changes outputs for given settings, with the
+    /// program version: part of each case's resume key.
+    pub fn output_fingerprint(&self, settings: &[(String, StructureSettings)]) -> String {
+        let value = serde_json::json!({
+            "version": env!("CARGO_PKG_VERSION"),
+            "formats": self.formats,
+            "annotate": self.annotate,
+            "structures": settings,
+        });
+        blake3::hash(value.to_string().as_bytes())
+            .to_hex()
+            .to_string()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn plan(text: &str) -> Result<Plan, ConfigError> {
+        Plan::new(
+            Config::parse(text, Path::new("/c/cohort.toml"))?,
+            Path::new("/c/cohort.toml"),
+        )
+    }
+
+    #[test]
+    fn settings_merge_in_order_and_paths_resolve() {
+        let p = plan(
+            r#"
+[input]
+roots = ["cases"]
+[output]
+root = "/abs/out"
+[defaults]
+method = "laplace"
+lambda = 0.4
+[[structure]]
+pattern = "ve*"
+method = "taubin"
+[[structure]]
+pattern = "vein"
+references = ["tumor"]
+skip = false
+"#,
+        )
+        .unwrap();
+        assert_eq!(p.roots, vec![PathBuf::from("/c/cases")]);
+        assert_eq!(p.output_root, PathBuf::from("/abs/out"));
+        let vein = p.settings_for("vein");
+        assert_eq!(vein.method, MethodKind::Taubin);
+        assert_eq!(vein.params.lambda, Some(0.4));
+        assert_eq!(vein.references, vec!["tumor"]);
+        let tumor = p.settings_for("tumor");
+        assert_eq!(tumor.method, MethodKind::Laplace);
+        assert!(tumor.references.is_empty());
+        assert_eq!(p.matching_tables("vessel"), vec!["ve*"]);
+    }
+
+    #[test]
+    fn bad_values_name_their_table() {
+        let base = "[input]\nroots = [\"c\"]\n[output]\nroot = \"o\"\n";
+        let cases = [
+            ("[defaults]\nmethod = \"smoothest\"\n", "[defaults]"),
+            (
+                "[[structure]]\npattern = \"v*\"\ncaps = \"keep\"\n",
+                "\"v*\"",
+            ),
+            ("[defaults]\ntau = 1.5\n", "tau"),
+            ("[defaults]\ndistance_scaling = \"ramp:3,1\"\n", "ramp"),
+            ("[defaults]\naxis = [0, 0, 0]\n", "axis"),
+        ];
+        for (extra, needle) in cases {
+            let err = plan(&format!("{base}{extra}")).unwrap_err().to_string();
+            assert!(err.contains(needle), "{err}");
+        }
+        let err = plan("[input]\nroots = [\"c\"]\n[output]\nroot = \"o\"\nformats = [\"vtk\"]\n")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("vtk"));
+    }
+}

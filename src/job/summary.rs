@@ -1,0 +1,234 @@
+//! The cohort summary: one row per case and structure, built from the per-case `report.json`
+//! files (so `destair summarize` can rebuild it from any set of output folders, e.g. shards),
+//! written as `summary.csv` and `summary.json`.
+
+use crate::io::write_atomically;
+use serde::Serialize;
+use serde_json::Value;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// One row of the summary.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SummaryRow {
+    pub case: String,
+    pub structure: String,
+    pub status: String,
+    pub method: String,
+    pub n_vertices: u64,
+    pub hausdorff_mm: Option<f64>,
+    pub mean_distance_mm: Option<f64>,
+    pub volume_percent: Option<f64>,
+    pub curvature_before_deg: Option<f64>,
+    pub curvature_after_deg: Option<f64>,
+    pub max_d_voxel_diagonals: Option<f64>,
+    /// Smallest distance to any reference before and after (mm).
+    pub reference_distance_before_mm: Option<f64>,
+    pub reference_distance_after_mm: Option<f64>,
+    pub staircase_share: Option<f64>,
+    pub n_caps: Option<u64>,
+    pub error: String,
+}
+
+/// The summary of a set of cases.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct Summary {
+    pub n_cases: usize,
+    pub n_ok: usize,
+    pub failed: Vec<String>,
+    /// Cases expected (from the config) but without a report.
+    pub missing: Vec<String>,
+    /// Cases with more than one report among the folders given.
+    pub duplicates: Vec<String>,
+    pub rows: Vec<SummaryRow>,
+}
+
+/// Rows of one report.json.
+pub fn rows_of(report: &Value) -> Vec<SummaryRow> {
+    let case = report["case"].as_str().unwrap_or("").to_string();
+    let structures = report["structures"].as_array().cloned().unwrap_or_default();
+    if structures.is_empty() {
+        let error = report["errors"]
+            .as_array()
+            .map(|e| {
+                e.iter()
+                    .filter_map(Value::as_str)
+                    .collect::<Vec<_>>()
+                    .join("; ")
+            })
+            .unwrap_or_default();
+        return vec![SummaryRow {
+            case,
+            structure: String::new(),
+            status: report["status"].as_str().unwrap_or("failed").to_string(),
+            method: String::new(),
+            n_vertices: 0,
+            hausdorff_mm: None,
+            mean_distance_mm: None,
+            volume_percent: None,
+            curvature_before_deg: None,
+            curvature_after_deg: None,
+            max_d_voxel_diagonals: None,
+            reference_distance_before_mm: None,
+            reference_distance_after_mm: None,
+            staircase_share: None,
+            n_caps: None,
+            error,
+        }];
+    }
+    structures
+        .iter()
+        .map(|s| {
+            let m = &s["metrics"];
+            let refs = m["references"].as_array().cloned().unwrap_or_default();
+            let min_of = |key: &str| refs.iter().filter_map(|r| r[key].as_f64()).reduce(f64::min);
+            SummaryRow {
+                case: case.clone(),
+                structure: s["name"].as_str().unwrap_or("").to_string(),
+                status: s["status"].as_str().unwrap_or("").to_string(),
+                method: s["method"]["method"].as_str().unwrap_or("").to_string(),
+                n_vertices: s["n_vertices"].as_u64().unwrap_or(0),
+                hausdorff_mm: m["distance"]["hausdorff_mm"].as_f64(),
+                mean_distance_mm: m["distance"]["mean_mm"].as_f64(),
+                volume_percent: m["volume_percent"].as_f64(),
+                curvature_before_deg: m["normal_curvature_original_deg"].as_f64(),
+                curvature_after_deg: m["normal_curvature_smoothed_deg"].as_f64(),
+                max_d_voxel_diagonals: m["max_d_voxel_diagonals"].as_f64(),
+                reference_distance_before_mm: min_of("before_mm"),
+                reference_distance_after_mm: min_of("after_mm"),
+                staircase_share: s["context"]["staircase_share"].as_f64(),
+                n_caps: s["context"]["caps"].as_array().map(|c| c.len() as u64),
+                error: s["error"].as_str().unwrap_or("").to_string(),
+            }
+        })
+        .collect()
+}
+
+/// A case's summary rows, read from its report.json (the report itself is not kept, so
+/// memory follows the number of rows, not the size of the reports).
+#[derive(Debug, Clone)]
+pub struct CaseRows {
+    pub id: String,
+    pub ok: bool,
+    pub rows: Vec<SummaryRow>,
+    pub path: PathBuf,
+}
+
+/// Reads one report.json into summary rows.
+pub fn read_case_rows(path: &Path) -> Result<CaseRows, String> {
+    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let v: Value =
+        serde_json::from_slice(&bytes).map_err(|e| format!("{}: {e}", path.display()))?;
+    if !v["schema_version"].is_u64() {
+        return Err(format!("{}: not a destair case report", path.display()));
+    }
+    Ok(CaseRows {
+        id: v["case"].as_str().unwrap_or("").to_string(),
+        ok: v["status"].as_str() == Some("ok"),
+        rows: rows_of(&v),
+        path: path.to_path_buf(),
+    })
+}
+
+/// Finds every case report below the given folders.
+pub fn collect_reports(dirs: &[PathBuf]) -> (Vec<CaseRows>, Vec<String>) {
+    let mut found = Vec::new();
+    let mut problems = Vec::new();
+    for dir in dirs {
+        for entry in walkdir::WalkDir::new(dir)
+            .follow_links(true)
+            .sort_by_file_name()
+        {
+            match entry {
+                Ok(e) if e.file_name() == "report.json" && e.file_type().is_file() => {
+                    match read_case_rows(e.path()) {
+                        Ok(c) => found.push(c),
+                        Err(p) => problems.push(p),
+                    }
+                }
+                Ok(_) => {}
+                Err(e) => problems.push(format!("{}: {e}", dir.display())),
+            }
+        }
+    }
+    (found, problems)
+}
+
+/// Builds the summary of the given cases; `expected` (case ids) enables the missing check.
+pub fn summarize(cases: Vec<CaseRows>, expected: Option<&[String]>) -> Summary {
+    let mut by_case: BTreeMap<String, Vec<CaseRows>> = BTreeMap::new();
+    for c in cases {
+        by_case.entry(c.id.clone()).or_default().push(c);
+    }
+    let mut s = Summary {
+        n_cases: by_case.len(),
+        ..Default::default()
+    };
+    if let Some(expected) = expected {
+        s.missing = expected
+            .iter()
+            .filter(|e| !by_case.contains_key(e.as_str()))
+            .cloned()
+            .collect();
+    }
+    for (id, mut copies) in by_case {
+        if copies.len() > 1 {
+            s.duplicates.push(id.clone());
+        }
+        let c = copies.swap_remove(0);
+        if c.ok {
+            s.n_ok += 1;
+        } else {
+            s.failed.push(id);
+        }
+        s.rows.extend(c.rows);
+    }
+    s
+}
+
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
+
+/// The rows as CSV with a header line.
+pub fn to_csv(rows: &[SummaryRow]) -> String {
+    let mut out = String::from("case,structure,status,method,n_vertices,hausdorff_mm,mean_distance_mm,volume_percent,curvature_before_deg,curvature_after_deg,max_d_voxel_diagonals,reference_distance_before_mm,reference_distance_after_mm,staircase_share,n_caps,error\n");
+    let num = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x}"));
+    for r in rows {
+        let fields = [
+            csv_field(&r.case),
+            csv_field(&r.structure),
+            r.status.clone(),
+            r.method.clone(),
+            r.n_vertices.to_string(),
+            num(r.hausdorff_mm),
+            num(r.mean_distance_mm),
+            num(r.volume_percent),
+            num(r.curvature_before_deg),
+            num(r.curvature_after_deg),
+            num(r.max_d_voxel_diagonals),
+            num(r.reference_distance_before_mm),
+            num(r.reference_distance_after_mm),
+            num(r.staircase_share),
+            r.n_caps.map_or(String::new(), |c| c.to_string()),
+            csv_field(&r.error),
+        ];
+        out.push_str(&fields.join(","));
+        out.push('\n');
+    }
+    out
+}
+
+/// Writes `summary.csv` and `summary.json` into `dir`, atomically.
+pub fn write_summary(dir: &Path, summary: &Summary) -> std::io::Result<()> {
+    std::fs::create_dir_all(dir)?;
+    crate::io::remove_stale_temp_files(dir)?;
+    let csv = to_csv(&summary.rows);
+    write_atomically(&dir.join("summary.csv"), |w| w.write_all(csv.as_bytes()))?;
+    let json = serde_json::to_vec_pretty(summary).map_err(std::io::Error::other)?;
+    write_atomically(&dir.join("summary.json"), |w| w.write_all(&json))
+}

@@ -1,0 +1,119 @@
+//! The per-case report: `report.json` (versioned schema, deterministic: the same inputs and
+//! configuration give the same bytes) and a human-readable `report.md`. Timings, which differ
+//! run to run, go to `timings.json` instead.
+
+use crate::job::StructureSettings;
+use crate::report::compare::CompareReport;
+use crate::report::inspect::ContextSummary;
+use crate::smooth::{Method, SmoothStats};
+use serde::Serialize;
+use std::fmt::Write;
+
+/// Version of the report.json layout; bumped when fields change meaning.
+pub const SCHEMA_VERSION: u32 = 1;
+
+/// One input file of a case.
+#[derive(Debug, Clone, Serialize)]
+pub struct InputInfo {
+    pub structure: String,
+    pub file: String,
+    pub bytes: u64,
+    /// BLAKE3 hash of the file's bytes (hex).
+    pub blake3: String,
+}
+
+/// What happened to one structure.
+#[derive(Debug, Clone, Serialize)]
+pub struct StructureReport {
+    pub name: String,
+    /// "ok", "skipped" (copied unchanged) or "failed".
+    pub status: String,
+    pub error: Option<String>,
+    pub settings: StructureSettings,
+    pub n_vertices: usize,
+    pub n_triangles: usize,
+    /// The smoother with every parameter as used (voxel size included).
+    pub method: Option<Method>,
+    pub smooth: Option<SmoothStats>,
+    pub context: Option<ContextSummary>,
+    /// Metrics before and after, including the distance to each reference.
+    pub metrics: Option<CompareReport>,
+    /// Output files written for this structure (names within the case folder).
+    pub outputs: Vec<String>,
+    pub warnings: Vec<String>,
+}
+
+/// Everything about one case.
+#[derive(Debug, Clone, Serialize)]
+pub struct CaseReport {
+    pub schema_version: u32,
+    pub case: String,
+    /// "ok" or "failed" (some structure failed or the case could not be read).
+    pub status: String,
+    pub inputs: Vec<InputInfo>,
+    pub structures: Vec<StructureReport>,
+    pub warnings: Vec<String>,
+    pub errors: Vec<String>,
+}
+
+impl CaseReport {
+    /// The report as Markdown.
+    pub fn to_markdown(&self) -> String {
+        let mut s = format!(
+            "# destair report: case `{}`\n\nstatus: **{}**\n\n",
+            self.case, self.status
+        );
+        for e in &self.errors {
+            let _ = writeln!(s, "- error: {e}");
+        }
+        for w in &self.warnings {
+            let _ = writeln!(s, "- warning: {w}");
+        }
+        s.push_str("\n| structure | status | method | vertices | Hausdorff (mm) | mean dist. (mm) | volume (%) | curvature (deg) | caps | staircase share |\n|---|---|---|---|---|---|---|---|---|---|\n");
+        for st in &self.structures {
+            let m = st.metrics.as_ref();
+            let num =
+                |v: Option<f64>, digits: usize| v.map_or("-".into(), |x| format!("{x:.digits$}"));
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+                st.name,
+                st.status,
+                st.method.map_or("-", |m| m.name()),
+                st.n_vertices,
+                num(m.map(|m| m.distance.hausdorff_mm), 4),
+                num(m.map(|m| m.distance.mean_mm), 4),
+                num(m.map(|m| m.volume_percent), 2),
+                m.map_or("-".into(), |m| format!(
+                    "{:.2} -> {:.2}",
+                    m.normal_curvature_original_deg, m.normal_curvature_smoothed_deg
+                )),
+                st.context
+                    .as_ref()
+                    .map_or("-".into(), |c| c.caps.len().to_string()),
+                st.context.as_ref().map_or("-".into(), |c| format!(
+                    "{:.2} %",
+                    100.0 * c.staircase_share
+                )),
+            );
+        }
+        for st in &self.structures {
+            if let Some(e) = &st.error {
+                let _ = writeln!(s, "\n`{}` failed: {e}", st.name);
+            }
+            if let Some(m) = &st.metrics {
+                for r in &m.references {
+                    let _ = writeln!(
+                        s,
+                        "\n`{}`: distance to `{}` {:.4} -> {:.4} mm ({:+.4})",
+                        st.name, r.name, r.before_mm, r.after_mm, r.change_mm
+                    );
+                }
+            }
+            for w in &st.warnings {
+                let _ = writeln!(s, "\n`{}`: {w}", st.name);
+            }
+        }
+        s
+    }
+}

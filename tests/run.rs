@@ -1,0 +1,364 @@
+//! The cohort runner end to end: failures are contained, reruns resume, shards add up, a killed
+//! run resumes to the same bytes, and memory does not grow with the cohort.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn destair(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_destair"))
+        .args(args)
+        .output()
+        .expect("run destair")
+}
+
+const CONFIG: &str = r#"
+[input]
+roots = ["cases"]
+case_depth = 1
+
+[output]
+root = "out"
+formats = ["ply", "stl"]
+
+[defaults]
+method = "hc"
+staircase = true
+caps = "smooth"
+
+[[structure]]
+pattern = "tumor"
+references = ["vein", "trachea"]
+
+[[structure]]
+pattern = "vein"
+references = ["tumor"]
+caps = "preserve"
+
+[[structure]]
+pattern = "trachea"
+skip = true
+"#;
+
+/// A cohort of `n` phantom cases plus, optionally, a case with a corrupt mesh and a case whose
+/// tumor's reference (vein) is missing. Returns the config path.
+fn cohort(dir: &Path, n: usize, broken: bool) -> PathBuf {
+    let cases = dir.join("cases");
+    let run = destair(&[
+        "phantom",
+        "cohort",
+        "--cases",
+        &n.to_string(),
+        "--out",
+        cases.to_str().unwrap(),
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    if broken {
+        let corrupt = cases.join("zz-corrupt");
+        std::fs::create_dir_all(&corrupt).unwrap();
+        std::fs::copy(
+            cases.join("case-000/trachea.ply"),
+            corrupt.join("trachea.ply"),
+        )
+        .unwrap();
+        let mut bytes = std::fs::read(cases.join("case-000/tumor.ply")).unwrap();
+        bytes.truncate(bytes.len() / 2);
+        std::fs::write(corrupt.join("tumor.ply"), bytes).unwrap();
+        let missing = cases.join("zz-missing-ref");
+        std::fs::create_dir_all(&missing).unwrap();
+        for s in ["tumor", "trachea"] {
+            std::fs::copy(
+                cases.join(format!("case-001/{s}.ply")),
+                missing.join(format!("{s}.ply")),
+            )
+            .unwrap();
+        }
+    }
+    let config = dir.join("cohort.toml");
+    std::fs::write(&config, CONFIG).unwrap();
+    config
+}
+
+/// Every file under `dir` (relative path -> bytes), except timings.json.
+fn snapshot(dir: &Path) -> BTreeMap<String, Vec<u8>> {
+    let mut out = BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else if p.file_name().unwrap() != "timings.json" {
+                out.insert(
+                    p.strip_prefix(dir).unwrap().display().to_string(),
+                    std::fs::read(&p).unwrap(),
+                );
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn failures_are_contained_and_reruns_do_no_work() {
+    let tmp = tempfile::tempdir().unwrap();
+    let config = cohort(tmp.path(), 5, true);
+    let run = destair(&["run", config.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(3), "{err}");
+    assert!(
+        err.contains("zz-corrupt") && err.contains("zz-missing-ref"),
+        "{err}"
+    );
+    let out = tmp.path().join("out");
+    for i in 0..5 {
+        let case = out.join(format!("case-{i:03}"));
+        for f in [
+            "tumor.ply",
+            "tumor.stl",
+            "vein.ply",
+            "trachea.stl",
+            "report.json",
+            "report.md",
+            "manifest.json",
+        ] {
+            assert!(case.join(f).is_file(), "{}", case.join(f).display());
+        }
+        let report: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(case.join("report.json")).unwrap()).unwrap();
+        assert_eq!(report["status"], "ok");
+        assert_eq!(report["schema_version"], 1);
+        let mesh = destair::io::read_mesh(&case.join("tumor.ply"), &Default::default()).unwrap();
+        assert!(mesh.mesh.n_vertices() > 0);
+    }
+    let corrupt: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("zz-corrupt/report.json")).unwrap())
+            .unwrap();
+    assert_eq!(corrupt["status"], "failed");
+    assert!(
+        corrupt["errors"].to_string().contains("tumor.ply"),
+        "{corrupt}"
+    );
+    let missing: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("zz-missing-ref/report.json")).unwrap())
+            .unwrap();
+    assert!(
+        missing["errors"]
+            .to_string()
+            .contains("reference \\\"vein\\\""),
+        "{missing}"
+    );
+    let summary = std::fs::read_to_string(out.join("summary.csv")).unwrap();
+    assert_eq!(summary.lines().count(), 1 + 5 * 3 + 2 + 2);
+    let before = snapshot(&out);
+    // A rerun skips every case and leaves every file as it was.
+    let rerun = destair(&["run", config.to_str().unwrap()]);
+    assert_eq!(rerun.status.code(), Some(3));
+    assert!(
+        String::from_utf8_lossy(&rerun.stderr).contains("7 already done"),
+        "{}",
+        String::from_utf8_lossy(&rerun.stderr)
+    );
+    assert_eq!(snapshot(&out), before);
+    // Changing an input redoes exactly that case.
+    let tumor = tmp.path().join("cases/case-002/tumor.ply");
+    let m = destair::io::read_mesh(&tumor, &Default::default()).unwrap();
+    let mut moved = m.mesh.clone();
+    moved.positions_mut()[0][0] += 0.25;
+    destair::io::ply::write_ply(&tumor, &moved, &m.meta, &[]).unwrap();
+    let rerun = destair(&["run", config.to_str().unwrap()]);
+    assert!(String::from_utf8_lossy(&rerun.stderr).contains("6 already done"));
+}
+
+#[test]
+fn two_shards_and_summarize_equal_one_run() {
+    let tmp = tempfile::tempdir().unwrap();
+    let config = cohort(tmp.path(), 8, false);
+    let whole = tmp.path().join("whole");
+    let run = destair(&["run", config.to_str().unwrap()]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    std::fs::rename(tmp.path().join("out"), &whole).unwrap();
+    for i in 0..2 {
+        let shard = format!("{i}/2");
+        let run = destair(&["run", config.to_str().unwrap(), "--shard", &shard]);
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+    }
+    let out = tmp.path().join("out");
+    assert!(
+        !out.join("summary.csv").exists(),
+        "shards leave the summary to summarize"
+    );
+    let sum = destair(&[
+        "summarize",
+        out.to_str().unwrap(),
+        "--config",
+        config.to_str().unwrap(),
+    ]);
+    assert!(
+        sum.status.success(),
+        "{}",
+        String::from_utf8_lossy(&sum.stdout)
+    );
+    assert_eq!(snapshot(&out), snapshot(&whole));
+    // Without every shard, summarize names the missing cases and exits 3.
+    let partial = tmp.path().join("partial");
+    std::fs::create_dir_all(&partial).unwrap();
+    std::fs::rename(out.join("case-000"), partial.join("case-000")).unwrap();
+    let sum = destair(&[
+        "summarize",
+        partial.to_str().unwrap(),
+        "--config",
+        config.to_str().unwrap(),
+    ]);
+    assert_eq!(sum.status.code(), Some(3));
+    assert!(String::from_utf8_lossy(&sum.stdout).contains("7 missing"));
+}
+
+#[test]
+fn killed_runs_resume_to_the_same_bytes() {
+    let tmp = tempfile::tempdir().unwrap();
+    let config = cohort(tmp.path(), 12, false);
+    let clean = tmp.path().join("clean");
+    assert!(destair(&["run", config.to_str().unwrap()]).status.success());
+    std::fs::rename(tmp.path().join("out"), &clean).unwrap();
+    let expected = snapshot(&clean);
+    for delay_ms in [5u64, 30, 80, 150] {
+        let _ = std::fs::remove_dir_all(tmp.path().join("out"));
+        let mut child = Command::new(env!("CARGO_BIN_EXE_destair"))
+            .args(["run", config.to_str().unwrap()])
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(delay_ms));
+        let _ = child.kill(); // SIGKILL: nothing can be cleaned up.
+        let _ = child.wait();
+        let rerun = destair(&["run", config.to_str().unwrap()]);
+        assert!(
+            rerun.status.success(),
+            "{}",
+            String::from_utf8_lossy(&rerun.stderr)
+        );
+        // Temp files of writes cut short are cleared when their case is redone.
+        let got = snapshot(&tmp.path().join("out"));
+        assert_eq!(
+            got.keys().collect::<Vec<_>>(),
+            expected.keys().collect::<Vec<_>>(),
+            "kill after {delay_ms} ms"
+        );
+        assert!(got == expected, "kill after {delay_ms} ms: outputs differ");
+        let again = destair(&["run", config.to_str().unwrap()]);
+        assert!(String::from_utf8_lossy(&again.stderr).contains("12 already done"));
+    }
+}
+
+#[test]
+fn sigterm_stops_promptly_with_128_plus_15() {
+    let tmp = tempfile::tempdir().unwrap();
+    let config = cohort(tmp.path(), 40, false);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_destair"))
+        .args(["run", config.to_str().unwrap()])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(40));
+    unsafe {
+        libc::kill(child.id() as i32, libc::SIGTERM);
+    }
+    let started = std::time::Instant::now();
+    let status = child.wait().unwrap();
+    assert!(started.elapsed().as_secs_f64() < 5.0);
+    // Either it finished before the signal (0) or it stopped cleanly (143).
+    assert!(matches!(status.code(), Some(0) | Some(143)), "{status:?}");
+    let rerun = destair(&["run", config.to_str().unwrap()]);
+    assert!(rerun.status.success());
+}
+
+#[test]
+fn usage_errors_exit_2() {
+    let tmp = tempfile::tempdir().unwrap();
+    let config = tmp.path().join("bad.toml");
+    std::fs::write(
+        &config,
+        "[input]\nroots = [\"c\"]\n[output]\nroot = \"o\"\n[defaults]\nlamda = 1\n",
+    )
+    .unwrap();
+    let run = destair(&["run", config.to_str().unwrap()]);
+    assert_eq!(run.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&run.stderr).contains("bad.toml:6:1"),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let good = cohort(tmp.path(), 1, false);
+    assert_eq!(
+        destair(&["run", good.to_str().unwrap(), "--shard", "3/2"])
+            .status
+            .code(),
+        Some(2)
+    );
+    assert!(destair(&["check", good.to_str().unwrap()]).status.success());
+}
+
+/// Peak resident memory (kB) of a child run, from wait4's rusage (which also reaps it).
+#[allow(clippy::zombie_processes)]
+fn peak_rss_kb(args: &[&str]) -> i64 {
+    let child = Command::new(env!("CARGO_BIN_EXE_destair"))
+        .args(args)
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut status = 0;
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    let pid = unsafe { libc::wait4(child.id() as i32, &mut status, 0, &mut usage) };
+    assert_eq!(pid, child.id() as i32);
+    assert!(
+        libc::WIFEXITED(status) && libc::WEXITSTATUS(status) == 0,
+        "run failed: {status}"
+    );
+    usage.ru_maxrss
+}
+
+/// A cohort of `n` copies of one phantom case, so that only the number of cases differs.
+fn copies(dir: &Path, n: usize) -> PathBuf {
+    let config = cohort(dir, 1, false);
+    let cases = dir.join("cases");
+    for i in 1..n {
+        let to = cases.join(format!("copy-{i:04}"));
+        std::fs::create_dir_all(&to).unwrap();
+        for s in ["tumor", "vein", "trachea"] {
+            std::fs::copy(
+                cases.join(format!("case-000/{s}.ply")),
+                to.join(format!("{s}.ply")),
+            )
+            .unwrap();
+        }
+    }
+    config
+}
+
+#[test]
+fn peak_memory_does_not_grow_with_the_cohort() {
+    let small = tempfile::tempdir().unwrap();
+    let large = tempfile::tempdir().unwrap();
+    let small_config = copies(small.path(), 20);
+    let large_config = copies(large.path(), 200);
+    let rss_small = peak_rss_kb(&["run", small_config.to_str().unwrap()]);
+    let rss_large = peak_rss_kb(&["run", large_config.to_str().unwrap()]);
+    eprintln!("peak RSS: 20 cases {rss_small} kB, 200 cases {rss_large} kB");
+    assert!(
+        (rss_large as f64) <= 1.2 * rss_small as f64,
+        "{rss_small} kB -> {rss_large} kB"
+    );
+}
