@@ -516,6 +516,18 @@ fn run_cases(
         plan.workers,
         rayon::current_num_threads()
     );
+    // A live bar on a terminal; off a terminal (cluster logs) indicatif draws nothing, so
+    // plain timestamped lines every few seconds instead.
+    let bar = std::io::IsTerminal::is_terminal(&std::io::stderr()).then(|| {
+        let bar = indicatif::ProgressBar::new(total as u64);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{elapsed_precise} [{bar:30}] {pos}/{len} cases {msg} ({per_sec}, ETA {eta})",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        bar
+    });
     let mut on_event = |e: Event| {
         match e {
             Event::CaseDone {
@@ -527,7 +539,11 @@ fn run_cases(
                 failed += f as usize;
                 skipped += s as usize;
                 if f {
-                    eprintln!("[{}] case {id} failed (see its report.json)", clock());
+                    let line = format!("[{}] case {id} failed (see its report.json)", clock());
+                    match &bar {
+                        Some(b) => b.println(line),
+                        None => eprintln!("{line}"),
+                    }
                 }
             }
             Event::WriteFailed { id, error } => {
@@ -535,6 +551,11 @@ fn run_cases(
                 failed += 1;
                 eprintln!("[{}] case {id}: cannot write outputs: {error}", clock());
             }
+        }
+        if let Some(b) = &bar {
+            b.set_position(done as u64);
+            b.set_message(format!("{failed} failed, {skipped} already done"));
+            return;
         }
         if last_log.elapsed().as_secs_f64() >= 5.0 || done == total {
             let rate = done as f64 / started.elapsed().as_secs_f64().max(1e-9);
@@ -549,6 +570,9 @@ fn run_cases(
         }
     };
     let result = run(plan, cases, &RunOptions { force }, &stop, &mut on_event);
+    if let Some(b) = &bar {
+        b.finish();
+    }
     if write_summary && result.not_started == 0 {
         let reports: Vec<_> = ids
             .iter()

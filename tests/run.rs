@@ -362,3 +362,40 @@ fn peak_memory_does_not_grow_with_the_cohort() {
         "{rss_small} kB -> {rss_large} kB"
     );
 }
+
+#[test]
+fn symlinked_inputs_as_nextflow_stages_them() {
+    let tmp = tempfile::tempdir().unwrap();
+    let config = cohort(tmp.path(), 2, false);
+    // A staged copy of the cohort where every mesh is a symlink to the original.
+    let staged = tmp.path().join("staged");
+    for case in ["case-000", "case-001"] {
+        std::fs::create_dir_all(staged.join(case)).unwrap();
+        for s in ["tumor", "vein", "trachea"] {
+            let target = tmp.path().join(format!("cases/{case}/{s}.ply"));
+            std::os::unix::fs::symlink(&target, staged.join(format!("{case}/{s}.ply"))).unwrap();
+        }
+    }
+    let out = tmp.path().join("staged-out");
+    for case in ["case-000", "case-001"] {
+        let run = destair(&[
+            "run-case",
+            staged.join(case).to_str().unwrap(),
+            "--config",
+            config.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+    }
+    assert!(destair(&["run", config.to_str().unwrap()]).status.success());
+    let mut a = snapshot(&out);
+    let b = snapshot(&tmp.path().join("out"));
+    a.insert("summary.csv".into(), b["summary.csv"].clone());
+    a.insert("summary.json".into(), b["summary.json"].clone());
+    assert!(a == b, "run-case on symlinks equals run");
+}
