@@ -53,6 +53,19 @@ pub fn torus(rings: usize, segments: usize) -> Mesh {
     Mesh::from_checked_parts(positions, triangles)
 }
 
+/// The `big` phantom's mesh of about `triangles` triangles and its grid spacing (mm).
+fn big_mesh(triangles: usize) -> (Mesh, [f64; 3]) {
+    let case = crate::phantom::big_case(triangles as u64, &Default::default());
+    let spacing = case.info.spacing_mm;
+    let mesh = case
+        .meshes
+        .into_iter()
+        .next()
+        .map(|(_, m)| m)
+        .unwrap_or_default();
+    (mesh, spacing)
+}
+
 /// Seconds of the best run of `f` over `repeat` runs.
 pub fn best_of<T>(repeat: usize, mut f: impl FnMut() -> T) -> (f64, T) {
     let mut best = f64::INFINITY;
@@ -205,17 +218,11 @@ pub struct SmoothBench {
 pub fn smooth(triangles: usize, iterations: usize, repeat: usize) -> SmoothBench {
     use crate::smooth::{smooth, Method};
     use crate::weights::VertexWeights;
-    let case = crate::phantom::big_case(triangles as u64, &Default::default());
-    let mesh = case
-        .meshes
-        .into_iter()
-        .next()
-        .map(|(_, m)| m)
-        .unwrap_or_default();
+    let (mesh, spacing) = big_mesh(triangles);
     let topology = Topology::build(&mesh);
     let weights = VertexWeights::uniform(mesh.n_vertices());
     let fixed = vec![false; mesh.n_vertices()];
-    let voxel = case.info.spacing_mm.map(|x| x as f32);
+    let voxel = spacing.map(|x| x as f32);
     // Threshold 0 never stops a relaxation early, so every method runs all iterations.
     let methods = [
         Method::Laplace { lambda: 0.5 },
@@ -302,13 +309,7 @@ pub fn context(triangles: usize, repeat: usize) -> ContextBench {
     use crate::analysis::{detect_caps, stack_axis, CapParams, StackAxisParams};
     use crate::spatial::TriangleGrid;
     use crate::weights::{staircase_weights, StaircaseParams};
-    let case = crate::phantom::big_case(triangles as u64, &Default::default());
-    let mesh = case
-        .meshes
-        .into_iter()
-        .next()
-        .map(|(_, m)| m)
-        .unwrap_or_default();
+    let (mesh, _) = big_mesh(triangles);
     let (topology_s, topology) = best_of(repeat, || Topology::build(&mesh));
     let (stack_axis_s, _) = best_of(repeat, || {
         stack_axis(&mesh, &topology, &StackAxisParams::default())

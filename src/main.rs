@@ -616,6 +616,22 @@ fn run_cases(
     Ok(())
 }
 
+/// The plan's cases in a shard (all without one); discovery warnings go to stderr.
+fn discover_cases(
+    plan: &destair::job::Plan,
+    shard: Option<destair::job::Shard>,
+) -> Vec<destair::job::CaseInput> {
+    let found = destair::job::discover(plan);
+    for w in &found.warnings {
+        eprintln!("warning: {w}");
+    }
+    found
+        .cases
+        .into_iter()
+        .filter(|c| shard.is_none_or(|s| s.contains(&c.id)))
+        .collect()
+}
+
 fn run(command: Command) -> anyhow::Result<()> {
     match command {
         Command::Run {
@@ -625,15 +641,7 @@ fn run(command: Command) -> anyhow::Result<()> {
         } => {
             let plan = load_plan(&config)?;
             let shard = shard_of(&shard)?;
-            let found = destair::job::discover(&plan);
-            for w in &found.warnings {
-                eprintln!("warning: {w}");
-            }
-            let cases: Vec<_> = found
-                .cases
-                .into_iter()
-                .filter(|c| shard.is_none_or(|s| s.contains(&c.id)))
-                .collect();
+            let cases = discover_cases(&plan, shard);
             if let Some(s) = shard {
                 eprintln!(
                     "shard {}/{}: {} cases; run `destair summarize {}` when all shards are done",
@@ -712,15 +720,7 @@ fn run(command: Command) -> anyhow::Result<()> {
         } => {
             let plan = load_plan(&config)?;
             let shard = shard_of(&shard)?;
-            let found = destair::job::discover(&plan);
-            for w in &found.warnings {
-                eprintln!("warning: {w}");
-            }
-            for c in found
-                .cases
-                .iter()
-                .filter(|c| shard.is_none_or(|s| s.contains(&c.id)))
-            {
+            for c in discover_cases(&plan, shard) {
                 let structures: Vec<&str> = c.meshes.iter().map(|(n, _)| n.as_str()).collect();
                 if jsonl {
                     println!(

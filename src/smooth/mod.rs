@@ -263,39 +263,29 @@ pub fn smooth(
             lambda,
             voxel,
             threshold,
-        } => constraints::relax(
-            original,
-            topology,
-            &scale,
-            lambda,
-            constraints::Region::Box(voxel),
-            None,
-            threshold,
-            iterations,
-        ),
-        Method::Diamond {
+        }
+        | Method::CellEdge {
             lambda,
             voxel,
             threshold,
-        } => constraints::relax(
-            original,
-            topology,
-            &scale,
-            lambda,
-            constraints::Region::Diamond(voxel),
-            None,
-            threshold,
-            iterations,
-        ),
-        Method::CellEdge {
+        }
+        | Method::Diamond {
             lambda,
             voxel,
             threshold,
         } => {
-            let axes = cell_edge_axes(mesh, voxel);
-            for (s, a) in scale.iter_mut().zip(&axes) {
-                if a.is_none() {
-                    *s = 0.0;
+            let region = match method {
+                Method::Diamond { .. } => constraints::Region::Diamond(voxel),
+                _ => constraints::Region::Box(voxel),
+            };
+            // Cell-edge moves each vertex along its own grid edge; vertices on none stay put.
+            let axes =
+                matches!(method, Method::CellEdge { .. }).then(|| cell_edge_axes(mesh, voxel));
+            if let Some(axes) = &axes {
+                for (s, a) in scale.iter_mut().zip(axes) {
+                    if a.is_none() {
+                        *s = 0.0;
+                    }
                 }
             }
             constraints::relax(
@@ -303,8 +293,8 @@ pub fn smooth(
                 topology,
                 &scale,
                 lambda,
-                constraints::Region::Box(voxel),
-                Some(&axes),
+                region,
+                axes.as_deref(),
                 threshold,
                 iterations,
             )
