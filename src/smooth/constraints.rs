@@ -4,7 +4,7 @@
 //! (cell-edge, §4.3) or the diamond |dx|/hx + |dy|/hy + |dz|/hz <= 1/2 (§4.4). Iteration stops
 //! when the largest step falls below a threshold (the paper uses 0.002).
 
-use super::{max_step, CHUNK};
+use super::{max_step, neighbour_mean, CHUNK};
 use crate::mesh::{Mesh, Topology};
 use rayon::prelude::*;
 
@@ -91,17 +91,9 @@ pub(super) fn relax(
                     *o = p;
                     continue;
                 }
-                let (lo, hi) = (offsets[v] as usize, offsets[v + 1] as usize);
-                let mut sum = [0.0f32; 3];
-                for &n in &neighbors[lo..hi] {
-                    let q = a[n as usize];
-                    sum[0] += q[0];
-                    sum[1] += q[1];
-                    sum[2] += q[2];
-                }
-                let inv = 1.0 / (hi - lo) as f32;
-                let target: [f32; 3] =
-                    std::array::from_fn(|k| p[k] + lambda * (sum[k] * inv - p[k]));
+                let m =
+                    neighbour_mean(&a, &neighbors[offsets[v] as usize..offsets[v + 1] as usize]);
+                let target: [f32; 3] = std::array::from_fn(|k| p[k] + lambda * (m[k] - p[k]));
                 let orig = original[v];
                 let mut d: [f32; 3] = std::array::from_fn(|k| target[k] - orig[k]);
                 if let Some(axes) = edge_axes {

@@ -2,7 +2,7 @@
 //! by beta of its own difference b = p - (alpha o + (1 - alpha) q) plus (1 - beta) of its
 //! neighbours' mean difference, which cancels most of Laplace's shrinkage.
 
-use super::{max_step, CHUNK};
+use super::{max_step, neighbour_mean, CHUNK};
 use crate::mesh::Topology;
 use rayon::prelude::*;
 
@@ -30,19 +30,14 @@ pub(super) fn hc(
                 for (i, (po, bo)) in pc.iter_mut().zip(bc.iter_mut()).enumerate() {
                     let v = first + i;
                     let qv = q[v];
-                    let (a, b) = (offsets[v] as usize, offsets[v + 1] as usize);
                     let mut r = qv;
                     if scale[v] != 0.0 {
-                        let mut sum = [0.0f32; 3];
-                        for &nb in &neighbors[a..b] {
-                            let x = q[nb as usize];
-                            sum[0] += x[0];
-                            sum[1] += x[1];
-                            sum[2] += x[2];
-                        }
-                        let inv = 1.0 / (b - a) as f32;
+                        let m = neighbour_mean(
+                            &q,
+                            &neighbors[offsets[v] as usize..offsets[v + 1] as usize],
+                        );
                         for k in 0..3 {
-                            r[k] = qv[k] + lambda * (sum[k] * inv - qv[k]);
+                            r[k] = qv[k] + lambda * (m[k] - qv[k]);
                         }
                     }
                     *po = r;
@@ -61,18 +56,13 @@ pub(super) fn hc(
                     *po = qv;
                     continue;
                 }
-                let (a, b) = (offsets[v] as usize, offsets[v + 1] as usize);
-                let mut sum = [0.0f32; 3];
-                for &nb in &neighbors[a..b] {
-                    let x = diff[nb as usize];
-                    sum[0] += x[0];
-                    sum[1] += x[1];
-                    sum[2] += x[2];
-                }
-                let inv = 1.0 / (b - a) as f32;
+                let mean_diff = neighbour_mean(
+                    &diff,
+                    &neighbors[offsets[v] as usize..offsets[v + 1] as usize],
+                );
                 let bv = diff[v];
                 *po = std::array::from_fn(|k| {
-                    let corrected = po[k] - (beta * bv[k] + (1.0 - beta) * sum[k] * inv);
+                    let corrected = po[k] - (beta * bv[k] + (1.0 - beta) * mean_diff[k]);
                     qv[k] + s * (corrected - qv[k])
                 });
             }

@@ -1,7 +1,7 @@
 //! The umbrella operator and the smoothers made of it: Laplace, Taubin lambda|mu (steps
 //! alternate through the factors), and Laplace with node-position constraint (Moench 2010).
 
-use super::{max_step, CHUNK};
+use super::{max_step, neighbour_mean, CHUNK};
 use crate::mesh::Topology;
 use rayon::prelude::*;
 
@@ -28,19 +28,14 @@ pub(super) fn umbrella_pass(
                 *o = p;
                 continue;
             }
-            let (a, b) = (offsets[v] as usize, offsets[v + 1] as usize);
-            let mut sum = [0.0f32; 3];
-            for &n in &neighbors[a..b] {
-                let q = src[n as usize];
-                sum[0] += q[0];
-                sum[1] += q[1];
-                sum[2] += q[2];
-            }
-            let inv = 1.0 / (b - a) as f32;
+            let m = neighbour_mean(
+                src,
+                &neighbors[offsets[v] as usize..offsets[v + 1] as usize],
+            );
             let mut r = [
-                p[0] + s * (sum[0] * inv - p[0]),
-                p[1] + s * (sum[1] * inv - p[1]),
-                p[2] + s * (sum[2] * inv - p[2]),
+                p[0] + s * (m[0] - p[0]),
+                p[1] + s * (m[1] - p[1]),
+                p[2] + s * (m[2] - p[2]),
             ];
             if let Some((original, voxel)) = clamp {
                 let o0 = original[v];

@@ -4,7 +4,7 @@
 //! cotangents) cannot flip the operator and slivers cannot blow it up; a vertex whose weights
 //! vanish falls back to the umbrella operator.
 
-use super::{max_step, CHUNK};
+use super::{max_step, neighbour_mean, CHUNK};
 use crate::mesh::{Mesh, Topology};
 use rayon::prelude::*;
 
@@ -86,16 +86,11 @@ pub(super) fn mcf(
                 let delta: [f32; 3] = if total > 1e-12 {
                     sum.map(|x| x / total)
                 } else {
-                    let nbs = &neighbors[vv_offsets[v] as usize..vv_offsets[v + 1] as usize];
-                    let inv = 1.0 / nbs.len() as f32;
-                    let mut m = [0.0f32; 3];
-                    for &nb in nbs {
-                        let q = a[nb as usize];
-                        for d in 0..3 {
-                            m[d] += (q[d] - p[d]) * inv;
-                        }
-                    }
-                    m
+                    let m = neighbour_mean(
+                        &a,
+                        &neighbors[vv_offsets[v] as usize..vv_offsets[v + 1] as usize],
+                    );
+                    [m[0] - p[0], m[1] - p[1], m[2] - p[2]]
                 };
                 *o = [
                     p[0] + s * delta[0],

@@ -320,6 +320,20 @@ pub fn boundary_vertices(topology: &Topology) -> Vec<bool> {
     fixed
 }
 
+/// Mean of `values` over the given neighbour indices (callers ensure the list is not empty).
+#[inline]
+pub(crate) fn neighbour_mean(values: &[[f32; 3]], neighbors: &[u32]) -> [f32; 3] {
+    let mut sum = [0.0f32; 3];
+    for &n in neighbors {
+        let q = values[n as usize];
+        sum[0] += q[0];
+        sum[1] += q[1];
+        sum[2] += q[2];
+    }
+    let inv = 1.0 / neighbors.len() as f32;
+    [sum[0] * inv, sum[1] * inv, sum[2] * inv]
+}
+
 /// Largest per-vertex distance between two position buffers (mm); order-independent.
 pub(crate) fn max_step(a: &[[f32; 3]], b: &[[f32; 3]]) -> f32 {
     use rayon::prelude::*;
