@@ -642,6 +642,18 @@ fn run(command: Command) -> anyhow::Result<()> {
             let plan = load_plan(&config)?;
             let shard = shard_of(&shard)?;
             let cases = discover_cases(&plan, shard);
+            if cases.is_empty() && shard.is_none() {
+                return Err(UsageError(format!(
+                    "{}: no cases found under {} (check [input] roots and case_depth)",
+                    config.display(),
+                    plan.roots
+                        .iter()
+                        .map(|r| r.display().to_string())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ))
+                .into());
+            }
             if let Some(s) = shard {
                 eprintln!(
                     "shard {}/{}: {} cases; run `destair summarize {}` when all shards are done",
@@ -664,23 +676,18 @@ fn run(command: Command) -> anyhow::Result<()> {
             let dir = case_dir
                 .canonicalize()
                 .map_err(|e| UsageError(format!("{}: {e}", case_dir.display())))?;
-            let mut probe = plan.clone();
-            probe.roots = vec![dir
-                .parent()
-                .map(std::path::Path::to_path_buf)
-                .unwrap_or_default()];
-            probe.case_depth = Some(1);
             let name = dir
                 .file_name()
                 .map(|n| n.to_string_lossy().into_owned())
                 .unwrap_or_default();
-            let case = destair::job::discover(&probe)
-                .cases
-                .into_iter()
-                .find(|c| c.id == name)
+            let mut warnings = Vec::new();
+            let case = destair::job::discover::case_at(&plan, &dir, name, &mut warnings)
                 .ok_or_else(|| {
                     UsageError(format!("{}: no meshes in this folder", case_dir.display()))
                 })?;
+            for w in warnings {
+                eprintln!("warning: {w}");
+            }
             run_cases(&plan, vec![case], force, false)?;
         }
         Command::Check { config } => {

@@ -399,3 +399,41 @@ fn symlinked_inputs_as_nextflow_stages_them() {
     a.insert("summary.json".into(), b["summary.json"].clone());
     assert!(a == b, "run-case on symlinks equals run");
 }
+
+#[test]
+fn outputs_inside_the_input_root_are_not_taken_for_cases() {
+    let tmp = tempfile::tempdir().unwrap();
+    cohort(tmp.path(), 2, false);
+    // Cases found by content (no case_depth) under the config's own folder, output beside them.
+    let config = tmp.path().join("here.toml");
+    std::fs::write(
+        &config,
+        "[input]\nroots = [\".\"]\n[output]\nroot = \"out\"\n[defaults]\nmethod = \"laplace\"\n",
+    )
+    .unwrap();
+    for _ in 0..2 {
+        let run = destair(&["run", config.to_str().unwrap()]);
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let list = destair(&["list", config.to_str().unwrap()]);
+        let ids: Vec<String> = String::from_utf8_lossy(&list.stdout)
+            .lines()
+            .map(|l| l.split('\t').next().unwrap().to_string())
+            .collect();
+        assert_eq!(ids, ["cases/case-000", "cases/case-001"]);
+    }
+    // A config that finds nothing is a usage error, not a silent success.
+    let empty = tmp.path().join("empty.toml");
+    std::fs::create_dir_all(tmp.path().join("nothing")).unwrap();
+    std::fs::write(
+        &empty,
+        "[input]\nroots = [\"nothing\"]\n[output]\nroot = \"o\"\n",
+    )
+    .unwrap();
+    let run = destair(&["run", empty.to_str().unwrap()]);
+    assert_eq!(run.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&run.stderr).contains("no cases found"));
+}

@@ -50,7 +50,41 @@ fn case_meshes(plan: &Plan, dir: &Path, warnings: &mut Vec<String>) -> Vec<PathB
     files
 }
 
-/// Lists the cases of all roots.
+/// The case in `dir` with the given id, or `None` if the folder holds no meshes.
+pub fn case_at(
+    plan: &Plan,
+    dir: &Path,
+    id: String,
+    warnings: &mut Vec<String>,
+) -> Option<CaseInput> {
+    let files = case_meshes(plan, dir, warnings);
+    if files.is_empty() {
+        return None;
+    }
+    let mut meshes: Vec<(String, PathBuf)> = Vec::new();
+    let mut problems = Vec::new();
+    for f in files {
+        let name = f
+            .file_stem()
+            .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+        if meshes.iter().any(|(n, _)| *n == name) {
+            problems.push(format!(
+                "two meshes for structure {name:?}: {} is ignored",
+                f.display()
+            ));
+            continue;
+        }
+        meshes.push((name, f));
+    }
+    Some(CaseInput {
+        id,
+        dir: dir.to_path_buf(),
+        meshes,
+        problems,
+    })
+}
+
+/// Lists the cases of all roots (never inside the output folder, which may lie within a root).
 pub fn discover(plan: &Plan) -> Discovery {
     let mut out = Discovery::default();
     let mut seen = std::collections::BTreeSet::new();
@@ -77,14 +111,7 @@ pub fn discover(plan: &Plan) -> Discovery {
             if !entry.file_type().is_dir() {
                 continue;
             }
-            let files = case_meshes(plan, entry.path(), &mut out.warnings);
-            if files.is_empty() {
-                if plan.case_depth.is_some() {
-                    out.warnings.push(format!(
-                        "{}: case folder holds no meshes",
-                        entry.path().display()
-                    ));
-                }
+            if entry.path().starts_with(&plan.output_root) {
                 continue;
             }
             let rel = entry.path().strip_prefix(root).unwrap_or(entry.path());
@@ -96,6 +123,15 @@ pub fn discover(plan: &Plan) -> Discovery {
                     .collect::<Vec<_>>()
                     .join("/")
             };
+            let Some(case) = case_at(plan, entry.path(), id.clone(), &mut out.warnings) else {
+                if plan.case_depth.is_some() {
+                    out.warnings.push(format!(
+                        "{}: case folder holds no meshes",
+                        entry.path().display()
+                    ));
+                }
+                continue;
+            };
             if !seen.insert(id.clone()) {
                 out.warnings.push(format!(
                     "{}: case {id:?} also exists under another root; skipped",
@@ -103,27 +139,7 @@ pub fn discover(plan: &Plan) -> Discovery {
                 ));
                 continue;
             }
-            let mut meshes: Vec<(String, PathBuf)> = Vec::new();
-            let mut problems = Vec::new();
-            for f in files {
-                let name = f
-                    .file_stem()
-                    .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
-                if meshes.iter().any(|(n, _)| *n == name) {
-                    problems.push(format!(
-                        "two meshes for structure {name:?}: {} is ignored",
-                        f.display()
-                    ));
-                    continue;
-                }
-                meshes.push((name, f));
-            }
-            out.cases.push(CaseInput {
-                id,
-                dir: entry.path().to_path_buf(),
-                meshes,
-                problems,
-            });
+            out.cases.push(case);
         }
     }
     out

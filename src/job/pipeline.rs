@@ -134,6 +134,28 @@ pub fn write_case_output(plan: &Plan, out: &CaseOutput) -> std::io::Result<()> {
     write_atomically(&dir.join("manifest.json"), |w| w.write_all(&manifest))
 }
 
+/// The failed output of a case whose processing hit an internal error (a bug).
+fn internal_error(id: String, key: String) -> CaseOutput {
+    CaseOutput {
+        report: crate::report::case::CaseReport {
+            schema_version: crate::report::case::SCHEMA_VERSION,
+            case: id.clone(),
+            status: "failed".into(),
+            inputs: Vec::new(),
+            structures: Vec::new(),
+            warnings: Vec::new(),
+            errors: vec![
+                "internal error while processing this case (a bug in destair; please report it)"
+                    .into(),
+            ],
+        },
+        id,
+        files: Vec::new(),
+        timings: serde_json::Value::Null,
+        key,
+    }
+}
+
 /// Runs the cases through the pipeline; `on_event` is called from the writer for each case.
 pub fn run(
     plan: &Plan,
@@ -191,7 +213,13 @@ pub fn run(
             let tx = done_tx.clone();
             scope.spawn(move || {
                 for (loaded, size) in rx {
-                    let out = process_case(plan, loaded);
+                    // A bug must not take the cohort down: it fails this case only.
+                    let id = loaded.input.id.clone();
+                    let key = loaded.key.clone();
+                    let out = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                        process_case(plan, loaded)
+                    }))
+                    .unwrap_or_else(|_| internal_error(id, key));
                     if tx.send(Finished::Done(Box::new(out), size)).is_err() {
                         break;
                     }

@@ -245,7 +245,10 @@ impl Plan {
 
     /// Loads and validates a configuration file.
     pub fn load(path: &Path) -> Result<Plan, ConfigError> {
-        Plan::new(Config::load(path)?, path)
+        let config = Config::load(path)?;
+        // Absolute, so roots and output compare as paths whatever the working directory.
+        let absolute = path.canonicalize().unwrap_or_else(|_| path.to_path_buf());
+        Plan::new(config, &absolute)
     }
 
     /// Effective settings for a structure: defaults, then every matching `[[structure]]` in order.
