@@ -114,10 +114,10 @@ fn resume_key(plan: &Plan, input: &CaseInput, files: &[LoadedFile]) -> String {
     h.finalize().to_hex().to_string()
 }
 
-/// Encodes a mesh in each output format; returns (file name, bytes) pairs.
+/// Encodes a mesh in each output format as `<stem>.<ext>`; returns (file name, bytes) pairs.
 fn encode(
     plan: &Plan,
-    name: &str,
+    stem: &str,
     mesh: &Mesh,
     loaded: &LoadedMesh,
     props: &[(&str, &[f32])],
@@ -126,10 +126,10 @@ fn encode(
         .iter()
         .map(|f| match f {
             OutputFormat::Ply => crate::io::ply::encode_ply(mesh, &loaded.meta, props)
-                .map(|b| (format!("{name}.ply"), b))
+                .map(|b| (format!("{stem}.ply"), b))
                 .map_err(|e| e.to_string()),
             OutputFormat::Stl => Ok((
-                format!("{name}.stl"),
+                format!("{stem}.stl"),
                 crate::io::stl::encode_stl(mesh, &loaded.meta),
             )),
         })
@@ -165,7 +165,8 @@ pub fn process_case(plan: &Plan, case: LoadedCase) -> CaseOutput {
             outputs: Vec::new(),
             warnings: Vec::new(),
         };
-        match process_structure(plan, f, &settings, &by_name, &mut grids, &mut report) {
+        let stem = plan.output_stem(&case.input.id, &f.structure);
+        match process_structure(plan, f, &stem, &settings, &by_name, &mut grids, &mut report) {
             Ok(outputs) => {
                 report.outputs = outputs.iter().map(|(n, _)| n.clone()).collect();
                 files.extend(outputs);
@@ -219,9 +220,11 @@ pub fn process_case(plan: &Plan, case: LoadedCase) -> CaseOutput {
     }
 }
 
+#[allow(clippy::too_many_arguments)]
 fn process_structure(
     plan: &Plan,
     file: &LoadedFile,
+    stem: &str,
     settings: &StructureSettings,
     case: &BTreeMap<&str, &LoadedFile>,
     grids: &mut BTreeMap<String, TriangleGrid>,
@@ -250,7 +253,7 @@ fn process_structure(
     }
     if settings.skip {
         report.status = "skipped".into();
-        return encode(plan, &file.structure, mesh, loaded, &[]);
+        return encode(plan, stem, mesh, loaded, &[]);
     }
     let topology = Topology::build(mesh);
     let voxel = match settings.voxel {
@@ -320,7 +323,7 @@ fn process_structure(
     } else {
         Vec::new()
     };
-    let out = encode(plan, &file.structure, &smoothed, loaded, &props)?;
+    let out = encode(plan, stem, &smoothed, loaded, &props)?;
     report.status = "ok".into();
     Ok(out)
 }

@@ -55,6 +55,13 @@ pub struct OutputConfig {
     /// Add `weight` and `displacement` vertex properties to PLY outputs.
     #[serde(default)]
     pub annotate: bool,
+    /// Output mesh file name without extension; `{structure}` and `{case}` are replaced.
+    #[serde(default = "default_naming")]
+    pub naming: String,
+}
+
+fn default_naming() -> String {
+    "{structure}".into()
 }
 
 fn default_formats() -> Vec<String> {

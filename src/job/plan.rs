@@ -37,6 +37,8 @@ pub struct Plan {
     pub output_root: PathBuf,
     pub formats: Vec<OutputFormat>,
     pub annotate: bool,
+    /// Output file stem template with `{structure}` and `{case}`.
+    pub naming: String,
     pub workers: usize,
     pub memory_budget_bytes: u64,
     pub read_mode: ReadMode,
@@ -214,6 +216,12 @@ impl Plan {
                 .map_err(|m| invalid(format!("[[structure]] {:?}: {m}", s.pattern)))?;
             structures.push((s.pattern, pattern, s.settings));
         }
+        let naming = config.output.naming.clone();
+        if !naming.contains("{structure}") || naming.contains(['/', '\\']) {
+            return Err(invalid(format!(
+                "[output] naming = {naming:?} must contain {{structure}} and no path separators"
+            )));
+        }
         let workers = config.run.workers.unwrap_or(1);
         if workers == 0 {
             return Err(invalid("[run] workers must be at least 1".into()));
@@ -231,6 +239,7 @@ impl Plan {
             output_root: absolute(&config.output.root),
             formats,
             annotate: config.output.annotate,
+            naming,
             workers,
             memory_budget_bytes: config.run.memory_budget_mb.unwrap_or(1024).max(1) << 20,
             read_mode: if config.run.plain_read {
@@ -263,6 +272,14 @@ impl Plan {
             .unwrap_or_else(|_| resolve(&Settings::default()).expect("built-in defaults are valid"))
     }
 
+    /// Output file stem for a structure of a case (the case id's last part for `{case}`).
+    pub fn output_stem(&self, case_id: &str, structure: &str) -> String {
+        let case = case_id.rsplit('/').next().unwrap_or(case_id);
+        self.naming
+            .replace("{structure}", structure)
+            .replace("{case}", case)
+    }
+
     /// Patterns of the `[[structure]]` tables that match a name, for `destair check`.
     pub fn matching_tables(&self, structure: &str) -> Vec<&str> {
         self.structures
@@ -279,6 +296,7 @@ impl Plan {
             "version": env!("CARGO_PKG_VERSION"),
             "formats": self.formats,
             "annotate": self.annotate,
+            "naming": self.naming,
             "structures": settings,
         });
         blake3::hash(value.to_string().as_bytes())
