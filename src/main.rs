@@ -509,7 +509,7 @@ fn run_cases(
     let ids: Vec<String> = cases.iter().map(|c| c.id.clone()).collect();
     let started = std::time::Instant::now();
     let mut last_log = std::time::Instant::now();
-    let (mut done, mut failed, mut skipped) = (0usize, 0usize, 0usize);
+    let (mut done, mut failed, mut skipped, mut n_structures) = (0usize, 0usize, 0usize, 0usize);
     eprintln!(
         "[{}] destair: {total} cases, {} worker(s), {} threads",
         clock(),
@@ -534,8 +534,10 @@ fn run_cases(
                 id,
                 failed: f,
                 skipped: s,
+                structures,
             } => {
                 done += 1;
+                n_structures += structures;
                 failed += f as usize;
                 skipped += s as usize;
                 if f {
@@ -554,14 +556,16 @@ fn run_cases(
         }
         if let Some(b) = &bar {
             b.set_position(done as u64);
-            b.set_message(format!("{failed} failed, {skipped} already done"));
+            b.set_message(format!(
+                "{n_structures} structures, {failed} failed, {skipped} already done"
+            ));
             return;
         }
         if last_log.elapsed().as_secs_f64() >= 5.0 || done == total {
             let rate = done as f64 / started.elapsed().as_secs_f64().max(1e-9);
             let eta = (total - done) as f64 / rate.max(1e-9);
             eprintln!(
-                "[{}] {done}/{total} cases ({failed} failed, {skipped} already done), {:.1} cases/min, ETA {:.0} s",
+                "[{}] {done}/{total} cases, {n_structures} structures ({failed} failed, {skipped} already done), {:.1} cases/min, ETA {:.0} s",
                 clock(),
                 60.0 * rate,
                 eta

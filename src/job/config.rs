@@ -37,6 +37,9 @@ pub struct InputConfig {
     /// File extensions of meshes (lower case, no dot).
     #[serde(default = "default_extensions")]
     pub extensions: Vec<String>,
+    /// Globs on file names that select meshes (e.g. "*_seg.stl"); when given, they replace
+    /// `extensions`. The structure name is still the file stem.
+    pub patterns: Option<Vec<String>>,
 }
 
 fn default_extensions() -> Vec<String> {

@@ -25,6 +25,13 @@ pub struct Discovery {
 }
 
 fn is_mesh(plan: &Plan, path: &Path) -> bool {
+    if let Some(patterns) = &plan.patterns {
+        let name = path
+            .file_name()
+            .map(|n| n.to_string_lossy())
+            .unwrap_or_default();
+        return patterns.iter().any(|p| p.matches(&name));
+    }
     path.extension()
         .and_then(|e| e.to_str())
         .is_some_and(|e| plan.extensions.iter().any(|x| x.eq_ignore_ascii_case(e)))

@@ -29,11 +29,12 @@ pub struct RunOptions {
 /// What the pipeline reports as it goes.
 #[derive(Debug, Clone)]
 pub enum Event {
-    /// A case was written (or skipped as already done).
+    /// A case was written (or skipped as already done); `structures` counts its meshes.
     CaseDone {
         id: String,
         failed: bool,
         skipped: bool,
+        structures: usize,
     },
     /// A case could not be written (its outputs are incomplete; a rerun redoes it).
     WriteFailed { id: String, error: String },
@@ -106,7 +107,7 @@ impl Budget {
 /// What the writer receives.
 enum Finished {
     Done(Box<CaseOutput>, u64),
-    Skipped(String, u64),
+    Skipped(String, u64, usize),
 }
 
 /// Writes one case's outputs, reports and (last) its manifest, each atomically.
@@ -194,10 +195,9 @@ pub fn run(
                 *started_ref += 1;
                 let loaded = load_case(plan, case);
                 if !options.force && is_done(&case_dir(plan, &loaded.input.id), &loaded.key) {
-                    if loader_done
-                        .send(Finished::Skipped(loaded.input.id.clone(), size))
-                        .is_err()
-                    {
+                    let skipped =
+                        Finished::Skipped(loaded.input.id.clone(), size, loaded.files.len());
+                    if loader_done.send(skipped).is_err() {
                         break;
                     }
                     continue;
@@ -231,7 +231,7 @@ pub fn run(
         // Writer: this thread.
         for finished in done_rx {
             match finished {
-                Finished::Skipped(id, size) => {
+                Finished::Skipped(id, size, structures) => {
                     budget.release(size);
                     let failed = std::fs::read(case_dir(plan, &id).join("manifest.json"))
                         .ok()
@@ -245,6 +245,7 @@ pub fn run(
                         id,
                         failed,
                         skipped: true,
+                        structures,
                     });
                 }
                 Finished::Done(out, size) => {
@@ -261,6 +262,7 @@ pub fn run(
                                 id: out.id.clone(),
                                 failed,
                                 skipped: false,
+                                structures: out.report.structures.len(),
                             });
                         }
                         Err(e) => {

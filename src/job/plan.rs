@@ -34,6 +34,8 @@ pub struct Plan {
     pub roots: Vec<PathBuf>,
     pub case_depth: Option<usize>,
     pub extensions: Vec<String>,
+    /// File-name globs that select meshes instead of `extensions`, when given.
+    pub patterns: Option<Vec<glob::Pattern>>,
     pub output_root: PathBuf,
     pub formats: Vec<OutputFormat>,
     pub annotate: bool,
@@ -216,6 +218,17 @@ impl Plan {
                 .map_err(|m| invalid(format!("[[structure]] {:?}: {m}", s.pattern)))?;
             structures.push((s.pattern, pattern, s.settings));
         }
+        let patterns = match &config.input.patterns {
+            None => None,
+            Some(list) => Some(
+                list.iter()
+                    .map(|p| {
+                        glob::Pattern::new(p)
+                            .map_err(|e| invalid(format!("[input] patterns: {p:?}: {e}")))
+                    })
+                    .collect::<Result<Vec<_>, _>>()?,
+            ),
+        };
         let naming = config.output.naming.clone();
         if !naming.contains("{structure}") || naming.contains(['/', '\\']) {
             return Err(invalid(format!(
@@ -236,6 +249,7 @@ impl Plan {
                 .iter()
                 .map(|e| e.to_ascii_lowercase())
                 .collect(),
+            patterns,
             output_root: absolute(&config.output.root),
             formats,
             annotate: config.output.annotate,
