@@ -437,3 +437,21 @@ fn outputs_inside_the_input_root_are_not_taken_for_cases() {
     assert_eq!(run.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&run.stderr).contains("no cases found"));
 }
+
+#[test]
+fn patterns_select_meshes_and_naming_names_outputs() {
+    let tmp = tempfile::tempdir().unwrap();
+    cohort(tmp.path(), 2, false);
+    let config = tmp.path().join("p.toml");
+    std::fs::write(
+        &config,
+        "[input]\nroots = [\"cases\"]\ncase_depth = 1\npatterns = [\"tu*.ply\", \"vein.ply\"]\n[output]\nroot = \"out\"\nnaming = \"{case}_{structure}_smooth\"\n[defaults]\nmethod = \"laplace\"\n",
+    )
+    .unwrap();
+    let list = destair(&["list", config.to_str().unwrap()]);
+    assert!(String::from_utf8_lossy(&list.stdout).contains("\ttumor,vein\n"));
+    assert!(destair(&["run", config.to_str().unwrap()]).status.success());
+    let case = tmp.path().join("out/case-001");
+    assert!(case.join("case-001_tumor_smooth.ply").is_file());
+    assert!(!case.join("case-001_trachea_smooth.ply").exists());
+}
