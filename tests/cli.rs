@@ -4,6 +4,15 @@ mod common;
 
 use std::process::Command;
 
+/// Asserts a run succeeded, showing its stderr if not.
+fn assert_ok(out: &std::process::Output) {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
 fn destair(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_destair"))
         .args(args)
@@ -24,11 +33,7 @@ fn inspect_text_and_json() {
     let p = path.to_str().unwrap();
 
     let out = destair(&["inspect", p]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_ok(&out);
     let text = String::from_utf8(out.stdout).unwrap();
     assert!(text.contains("vertices 7  triangles 8  edges 12"), "{text}");
     assert!(text.contains("1 unreferenced vertices"), "{text}");
@@ -89,11 +94,7 @@ fn bench_io_runs_small() {
         "--dir",
         dir.path().to_str().unwrap(),
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_ok(&out);
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let n = json["n_triangles"].as_u64().unwrap();
     assert!((19_000..=21_000).contains(&n), "{n}");
@@ -112,11 +113,7 @@ fn phantom_writes_meshes_and_description() {
         "--seed",
         "4",
     ]);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    assert_ok(&run);
     for s in ["tumor", "vein", "trachea"] {
         let report = destair(&[
             "inspect",
@@ -141,11 +138,7 @@ fn phantom_writes_meshes_and_description() {
         "--out",
         rotated.to_str().unwrap(),
     ]);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    assert_ok(&run);
     let report = destair(&["inspect", rotated.join("sphere.ply").to_str().unwrap()]);
     let text = String::from_utf8(report.stdout).unwrap();
     assert!(
@@ -283,11 +276,7 @@ fn smooth_then_compare() {
         "--weights",
         zero.to_str().unwrap(),
     ]);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    assert_ok(&run);
     let smoothed = destair::io::read_mesh(&out, &Default::default()).unwrap();
     assert_eq!(smoothed.mesh.positions(), loaded.mesh.positions());
 }
@@ -311,11 +300,7 @@ fn inspect_context_and_context_aware_smoothing() {
         "--export",
         export.to_str().unwrap(),
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_ok(&out);
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(json["context"]["axis_source"], "estimated");
     assert_eq!(json["context"]["caps"].as_array().unwrap().len(), 3);
@@ -354,11 +339,7 @@ fn inspect_context_and_context_aware_smoothing() {
         "--axis",
         "0,0,1",
     ]);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    assert_ok(&run);
     assert!(String::from_utf8_lossy(&run.stderr).contains("stack axis (given)"));
     let a = destair::io::read_mesh(&mesh, &Default::default())
         .unwrap()

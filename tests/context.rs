@@ -251,14 +251,15 @@ fn aneurysm_clipped_ends_are_the_caps() {
     }
 }
 
-#[test]
-fn context_aware_laplace_on_binary_sphere_aniso_keeps_volume() {
-    let case = named_case("sphere-aniso-1-4", &PhantomOptions::default()).unwrap();
-    let m = &case.meshes[0].1;
-    let t = Topology::build(m);
-    let v0 = enclosed_volume(m, &t).mm3;
+/// Uniform and context-aware Laplace (20 iterations, lambda 0.5, axis z, beta_min 0) on a
+/// phantom: returns (mesh, weights analysis, context-aware result, relative volume changes).
+fn uniform_versus_context(name: &str) -> (Mesh, destair::weights::Context, Mesh, f64, f64) {
+    let case = named_case(name, &PhantomOptions::default()).unwrap();
+    let m = case.meshes[0].1.clone();
+    let t = Topology::build(&m);
+    let v0 = enclosed_volume(&m, &t).mm3;
     let uniform = smoothed(
-        m,
+        &m,
         Method::Laplace { lambda: 0.5 },
         20,
         &VertexWeights::uniform(m.n_vertices()),
@@ -271,19 +272,21 @@ fn context_aware_laplace_on_binary_sphere_aniso_keeps_volume() {
         },
         ..Default::default()
     };
-    let aware = smoothed(
-        m,
-        Method::Laplace { lambda: 0.5 },
-        20,
-        &context_weights(m, &t, &params, &[]).weights,
-    );
-    let dv_uniform = (enclosed_volume(&uniform, &Topology::build(&uniform)).mm3 - v0) / v0;
-    let dv_aware = (enclosed_volume(&aware, &Topology::build(&aware)).mm3 - v0) / v0;
+    let ctx = context_weights(&m, &t, &params, &[]);
+    let aware = smoothed(&m, Method::Laplace { lambda: 0.5 }, 20, &ctx.weights);
+    let change = |s: &Mesh| (enclosed_volume(s, &Topology::build(s)).mm3 - v0) / v0;
+    let (dv_uniform, dv_aware) = (change(&uniform), change(&aware));
     eprintln!(
-        "binary sphere-aniso-1-4 volume change: uniform {:.3} %, context-aware {:.3} %",
+        "{name} volume change: uniform {:.3} %, context-aware {:.3} %",
         100.0 * dv_uniform,
         100.0 * dv_aware
     );
+    (m, ctx, aware, dv_uniform, dv_aware)
+}
+
+#[test]
+fn context_aware_laplace_on_binary_sphere_aniso_keeps_volume() {
+    let (_, _, _, dv_uniform, dv_aware) = uniform_versus_context("sphere-aniso-1-4");
     assert!(dv_aware.abs() < dv_uniform.abs() / 3.0);
 }
 
@@ -291,33 +294,7 @@ fn context_aware_laplace_on_binary_sphere_aniso_keeps_volume() {
 fn context_aware_laplace_keeps_volume_and_leaves_distant_vertices() {
     // The paper's sphere was Gaussian-smoothed before marching cubes: the smooth variant, with
     // a quarter of its top slice removed, has staircases only there.
-    let case = named_case("sphere-smooth-1-4", &PhantomOptions::default()).unwrap();
-    let m = &case.meshes[0].1;
-    let t = Topology::build(m);
-    let v0 = enclosed_volume(m, &t).mm3;
-    let uniform = smoothed(
-        m,
-        Method::Laplace { lambda: 0.5 },
-        20,
-        &VertexWeights::uniform(m.n_vertices()),
-    );
-    let params = ContextParams {
-        axis: AxisChoice::Given([0.0, 0.0, 1.0]),
-        staircase_params: StaircaseParams {
-            beta_min: 0.0,
-            ..Default::default()
-        },
-        ..Default::default()
-    };
-    let ctx = context_weights(m, &t, &params, &[]);
-    let aware = smoothed(m, Method::Laplace { lambda: 0.5 }, 20, &ctx.weights);
-    let dv_uniform = (enclosed_volume(&uniform, &Topology::build(&uniform)).mm3 - v0) / v0;
-    let dv_aware = (enclosed_volume(&aware, &Topology::build(&aware)).mm3 - v0) / v0;
-    eprintln!(
-        "volume change: uniform {:.3} %, context-aware {:.3} %",
-        100.0 * dv_uniform,
-        100.0 * dv_aware
-    );
+    let (m, ctx, aware, dv_uniform, dv_aware) = uniform_versus_context("sphere-smooth-1-4");
     assert!(dv_aware.abs() < dv_uniform.abs() / 3.0);
     // With beta_min 0, vertices out of every staircase's reach do not move at all.
     let stairs = ctx.staircase.as_ref().unwrap();

@@ -8,7 +8,7 @@ use super::plan::{Plan, StructureSettings};
 use crate::io::{decode_mesh, extension, with_file_bytes, LoadedMesh, OutputFormat, ReadOptions};
 use crate::mesh::{Mesh, Topology};
 use crate::report::case::{CaseReport, InputInfo, StructureReport, SCHEMA_VERSION};
-use crate::report::compare::compare;
+use crate::report::compare::compare_prepared;
 use crate::report::inspect::context_summary;
 use crate::smooth::{boundary_vertices, smooth};
 use crate::spatial::TriangleGrid;
@@ -297,12 +297,13 @@ fn process_structure(
     );
     let mut smoothed = mesh.clone();
     smoothed.positions_mut().copy_from_slice(&positions);
-    let named_refs: Vec<(String, Mesh)> = reference_meshes
+    let named_refs: Vec<(&str, &Mesh, &TriangleGrid)> = reference_meshes
         .iter()
-        .map(|(n, m)| (n.clone(), m.mesh.clone()))
+        .filter_map(|(n, m)| grids.get(n).map(|g| (n.as_str(), &m.mesh, g)))
         .collect();
-    let metrics = compare(
+    let metrics = compare_prepared(
         mesh,
+        &topology,
         &smoothed,
         &named_refs,
         voxel.map(|v| v.map(f64::from)),

@@ -52,28 +52,54 @@ pub fn compare(
     references: &[(String, Mesh)],
     voxel: Option<[f64; 3]>,
 ) -> CompareReport {
-    let topo_o = Topology::build(original);
-    let topo_s = Topology::build(smoothed);
+    let grids: Vec<TriangleGrid> = references
+        .iter()
+        .map(|(_, m)| TriangleGrid::build(m))
+        .collect();
+    let refs: Vec<(&str, &Mesh, &TriangleGrid)> = references
+        .iter()
+        .zip(&grids)
+        .map(|((n, m), g)| (n.as_str(), m, g))
+        .collect();
+    compare_prepared(original, &Topology::build(original), smoothed, &refs, voxel)
+}
+
+/// [`compare`] reusing what the caller already has: the original's topology (topology depends
+/// only on the triangles, so it also serves a smoothed mesh with the same triangles) and the
+/// references' triangle grids.
+pub fn compare_prepared(
+    original: &Mesh,
+    topo_o: &Topology,
+    smoothed: &Mesh,
+    references: &[(&str, &Mesh, &TriangleGrid)],
+    voxel: Option<[f64; 3]>,
+) -> CompareReport {
+    let same_vertices = original.n_vertices() == smoothed.n_vertices()
+        && original.triangles() == smoothed.triangles();
+    let rebuilt;
+    let topo_s = if same_vertices {
+        topo_o
+    } else {
+        rebuilt = Topology::build(smoothed);
+        &rebuilt
+    };
     let grid_o = TriangleGrid::build(original);
     let grid_s = TriangleGrid::build(smoothed);
     let distance = surface_distance(original, &grid_o, smoothed, &grid_s);
-    let vol_o = enclosed_volume(original, &topo_o);
-    let vol_s = enclosed_volume(smoothed, &topo_s);
-    let same_vertices = original.n_vertices() == smoothed.n_vertices()
-        && original.triangles() == smoothed.triangles();
+    let vol_o = enclosed_volume(original, topo_o);
+    let vol_s = enclosed_volume(smoothed, topo_s);
     let displacement = same_vertices
         .then(|| displacement_stats(&displacements(original.positions(), smoothed.positions())));
-    let voxel_size_mm = voxel.or_else(|| voxel_size(original, &topo_o).spacing());
+    let voxel_size_mm = voxel.or_else(|| voxel_size(original, topo_o).spacing());
     let max_d_voxel_diagonals = voxel_size_mm
         .map(|h| distance.hausdorff_mm / (h[0] * h[0] + h[1] * h[1] + h[2] * h[2]).sqrt());
     let references = references
         .iter()
-        .map(|(name, r)| {
-            let grid_r = TriangleGrid::build(r);
-            let before_mm = minimum_distance(original, &grid_o, r, &grid_r);
-            let after_mm = minimum_distance(smoothed, &grid_s, r, &grid_r);
+        .map(|&(name, r, grid_r)| {
+            let before_mm = minimum_distance(original, &grid_o, r, grid_r);
+            let after_mm = minimum_distance(smoothed, &grid_s, r, grid_r);
             ReferenceDistance {
-                name: name.clone(),
+                name: name.to_string(),
                 before_mm,
                 after_mm,
                 change_mm: after_mm - before_mm,
@@ -92,8 +118,8 @@ pub fn compare(
             f64::NAN
         },
         loops_closed_by_fans: vol_o.loops_closed_by_fans.max(vol_s.loops_closed_by_fans),
-        normal_curvature_original_deg: average_normal_curvature(original, &topo_o),
-        normal_curvature_smoothed_deg: average_normal_curvature(smoothed, &topo_s),
+        normal_curvature_original_deg: average_normal_curvature(original, topo_o),
+        normal_curvature_smoothed_deg: average_normal_curvature(smoothed, topo_s),
         min_triangle_angle_original_deg: min_triangle_angle(original),
         min_triangle_angle_smoothed_deg: min_triangle_angle(smoothed),
         displacement,
