@@ -5,12 +5,14 @@
 //! the file and the place in it. Writers are atomic: temp file in the target folder, then rename.
 
 pub mod atomic;
+pub mod identity;
 pub mod obj;
 pub mod ply;
 pub mod stl;
 mod text;
 
 pub use atomic::{remove_stale_temp_files, write_atomically};
+pub use identity::{check_regular_file, file_id, same_file, ProtectedFiles};
 
 use crate::mesh::{Mesh, MeshError};
 use std::path::{Path, PathBuf};
@@ -204,6 +206,8 @@ enum FileBytes {
 
 impl FileBytes {
     fn open(path: &Path, mode: ReadMode) -> std::io::Result<FileBytes> {
+        // Checked before opening: opening a FIFO blocks, and /dev/zero never ends.
+        check_regular_file(path)?;
         let file = std::fs::File::open(path)?;
         let len = file.metadata()?.len();
         // Mapping an empty file fails on some systems; an empty buffer gives the clearer error.

@@ -182,11 +182,13 @@ pub fn process_case(plan: &Plan, case: LoadedCase) -> CaseOutput {
         );
         structures.push(report);
     }
-    let mut errors: Vec<String> = structures
-        .iter()
-        .filter_map(|s| s.error.as_ref().map(|e| format!("{}: {e}", s.name)))
-        .collect();
-    if case.files.is_empty() {
+    let mut errors: Vec<String> = case.input.errors.clone();
+    errors.extend(
+        structures
+            .iter()
+            .filter_map(|s| s.error.as_ref().map(|e| format!("{}: {e}", s.name))),
+    );
+    if errors.is_empty() && case.files.is_empty() {
         errors.push("the case holds no meshes".into());
     }
     let report = CaseReport {

@@ -6,6 +6,9 @@ use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use thiserror::Error;
 
+/// Largest configuration file read (bytes).
+const MAX_CONFIG_BYTES: u64 = 16 << 20;
+
 /// A configuration file that cannot be used.
 #[derive(Debug, Error)]
 pub enum ConfigError {
@@ -147,10 +150,19 @@ pub struct Config {
 impl Config {
     /// Reads and parses a configuration file.
     pub fn load(path: &Path) -> Result<Config, ConfigError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+        let io = |source| ConfigError::Io {
             path: path.to_path_buf(),
             source,
-        })?;
+        };
+        // A device or FIFO would block or never end; a huge file is not a configuration.
+        let meta = crate::io::check_regular_file(path).map_err(io)?;
+        if meta.len() > MAX_CONFIG_BYTES {
+            return Err(io(std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                format!("{} bytes is too large for a configuration file", meta.len()),
+            )));
+        }
+        let text = std::fs::read_to_string(path).map_err(io)?;
         Self::parse(&text, path)
     }
 

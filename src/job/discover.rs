@@ -1,6 +1,7 @@
 //! Finding the cases of a cohort: sorted and deterministic, following symlinks (workflow engines
 //! stage inputs as links), with loops and unreadable folders reported rather than fatal.
 
+use super::lock::is_output_root;
 use super::plan::Plan;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -15,6 +16,9 @@ pub struct CaseInput {
     pub meshes: Vec<(String, PathBuf)>,
     /// Problems found while listing (duplicate structure names).
     pub problems: Vec<String>,
+    /// Why the case cannot be processed (its folder cannot be read); such a case fails.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub errors: Vec<String>,
 }
 
 /// The cases of a plan, and what could not be read while looking for them.
@@ -37,24 +41,42 @@ fn is_mesh(plan: &Plan, path: &Path) -> bool {
         .is_some_and(|e| plan.extensions.iter().any(|x| x.eq_ignore_ascii_case(e)))
 }
 
-/// Mesh files directly in `dir`, sorted by name.
-fn case_meshes(plan: &Plan, dir: &Path, warnings: &mut Vec<String>) -> Vec<PathBuf> {
+/// Mesh files directly in `dir`, sorted by name; an unreadable folder is an error.
+fn case_meshes(
+    plan: &Plan,
+    dir: &Path,
+    warnings: &mut Vec<String>,
+) -> Result<Vec<PathBuf>, String> {
     let mut files = Vec::new();
     for entry in walkdir::WalkDir::new(dir)
-        .min_depth(1)
+        .min_depth(0)
         .max_depth(1)
         .follow_links(true)
         .sort_by_file_name()
     {
         match entry {
-            Ok(e) if e.file_type().is_file() && is_mesh(plan, e.path()) => {
+            Ok(e) if e.depth() == 1 && e.file_type().is_file() && is_mesh(plan, e.path()) => {
                 files.push(e.path().to_path_buf())
             }
             Ok(_) => {}
+            // The folder itself cannot be listed: the case cannot be processed.
+            Err(e) if e.depth() == 0 || e.path() == Some(dir) => {
+                return Err(format!(
+                    "cannot read the case folder {}: {}",
+                    dir.display(),
+                    io_reason(&e)
+                ))
+            }
             Err(e) => warnings.push(format!("{}: {e}", dir.display())),
         }
     }
-    files
+    Ok(files)
+}
+
+/// The OS reason of a walk error, without walkdir's repetition of the path.
+fn io_reason(e: &walkdir::Error) -> String {
+    e.io_error()
+        .map_or_else(|| e.to_string(), |io| io.to_string())
 }
 
 /// The case in `dir` with the given id, or `None` if the folder holds no meshes.
@@ -64,7 +86,10 @@ pub fn case_at(
     id: String,
     warnings: &mut Vec<String>,
 ) -> Option<CaseInput> {
-    let files = case_meshes(plan, dir, warnings);
+    let files = match case_meshes(plan, dir, warnings) {
+        Ok(files) => files,
+        Err(error) => return Some(unreadable_case(dir, id, error)),
+    };
     if files.is_empty() {
         return None;
     }
@@ -88,13 +113,41 @@ pub fn case_at(
         dir: dir.to_path_buf(),
         meshes,
         problems,
+        errors: Vec::new(),
     })
 }
 
-/// Lists the cases of all roots (never inside the output folder, which may lie within a root).
+/// A case whose folder cannot be read: it fails with the reason, rather than vanishing.
+fn unreadable_case(dir: &Path, id: String, error: String) -> CaseInput {
+    CaseInput {
+        id,
+        dir: dir.to_path_buf(),
+        meshes: Vec::new(),
+        problems: Vec::new(),
+        errors: vec![error],
+    }
+}
+
+/// Case id of a folder below a root: its relative path with `/` separators ("." for the root).
+fn case_id(root: &Path, dir: &Path) -> String {
+    let rel = dir.strip_prefix(root).unwrap_or(dir);
+    if rel.as_os_str().is_empty() {
+        ".".to_string()
+    } else {
+        rel.components()
+            .map(|c| c.as_os_str().to_string_lossy().into_owned())
+            .collect::<Vec<_>>()
+            .join("/")
+    }
+}
+
+/// Lists the cases of all roots. Never below an output root (a folder holding the
+/// [`MARKER`](super::lock::MARKER)), whatever the path spelling; a folder that cannot be read
+/// becomes a failed case rather than vanishing.
 pub fn discover(plan: &Plan) -> Discovery {
     let mut out = Discovery::default();
     let mut seen = std::collections::BTreeSet::new();
+    let output_root = super::paths::canonical(&plan.output_root);
     for root in &plan.roots {
         if !root.is_dir() {
             out.warnings
@@ -107,46 +160,69 @@ pub fn discover(plan: &Plan) -> Discovery {
         if let Some(depth) = plan.case_depth {
             walker = walker.min_depth(depth).max_depth(depth);
         }
+        let mut skipped_outputs = Vec::new();
+        let walker = walker.into_iter().filter_entry(|e| {
+            let output = e.file_type().is_dir()
+                && (is_output_root(e.path()) || super::paths::canonical(e.path()) == output_root);
+            if output {
+                skipped_outputs.push(e.path().to_path_buf());
+            }
+            !output
+        });
         for entry in walker {
-            let entry = match entry {
-                Ok(e) => e,
+            let (dir, case) = match entry {
+                Ok(e) if e.file_type().is_dir() => {
+                    let id = case_id(root, e.path());
+                    let Some(case) = case_at(plan, e.path(), id, &mut out.warnings) else {
+                        if plan.case_depth.is_some() {
+                            out.warnings.push(format!(
+                                "{}: case folder holds no meshes",
+                                e.path().display()
+                            ));
+                        }
+                        continue;
+                    };
+                    (e.path().to_path_buf(), case)
+                }
+                Ok(_) => continue,
+                // A folder the walk cannot enter: with case_depth only folders above the cases
+                // are entered, so it is a case only without case_depth.
                 Err(e) => {
-                    out.warnings.push(format!("{}: {e}", root.display()));
-                    continue;
+                    let dir = e.path().map(Path::to_path_buf);
+                    match dir {
+                        Some(d) if plan.case_depth.is_none() && d.is_dir() => {
+                            let error = format!(
+                                "cannot read the folder {}: {}",
+                                d.display(),
+                                io_reason(&e)
+                            );
+                            let case = unreadable_case(&d, case_id(root, &d), error);
+                            (d, case)
+                        }
+                        _ => {
+                            out.warnings.push(format!("{}: {e}", root.display()));
+                            continue;
+                        }
+                    }
                 }
             };
-            if !entry.file_type().is_dir() {
-                continue;
-            }
-            if entry.path().starts_with(&plan.output_root) {
-                continue;
-            }
-            let rel = entry.path().strip_prefix(root).unwrap_or(entry.path());
-            let id = if rel.as_os_str().is_empty() {
-                ".".to_string()
-            } else {
-                rel.components()
-                    .map(|c| c.as_os_str().to_string_lossy().into_owned())
-                    .collect::<Vec<_>>()
-                    .join("/")
-            };
-            let Some(case) = case_at(plan, entry.path(), id.clone(), &mut out.warnings) else {
-                if plan.case_depth.is_some() {
-                    out.warnings.push(format!(
-                        "{}: case folder holds no meshes",
-                        entry.path().display()
-                    ));
-                }
-                continue;
-            };
-            if !seen.insert(id.clone()) {
+            if !seen.insert(case.id.clone()) {
                 out.warnings.push(format!(
-                    "{}: case {id:?} also exists under another root; skipped",
-                    entry.path().display()
+                    "{}: case {:?} also exists under another root; skipped",
+                    dir.display(),
+                    case.id
                 ));
                 continue;
             }
             out.cases.push(case);
+        }
+        for d in skipped_outputs {
+            if d != plan.output_root && super::paths::canonical(&d) != output_root {
+                out.warnings.push(format!(
+                    "{}: a destair output folder; not searched for cases",
+                    d.display()
+                ));
+            }
         }
     }
     out
@@ -209,10 +285,15 @@ impl Shard {
             Some(_) => get("SLURM_ARRAY_TASK_STEP")?,
             None => 1,
         };
+        if id < min || id > max {
+            return Err(format!(
+                "SLURM_ARRAY_TASK_ID={id} lies outside SLURM_ARRAY_TASK_MIN..MAX = {min}..{max}"
+            ));
+        }
         if step == 0
-            || id < min
             || (id - min) % step != 0
             || max < min
+            || (max - min) % step != 0
             || (max - min) / step + 1 != count
         {
             return Err(format!(
@@ -281,5 +362,30 @@ mod tests {
         ]))
         .is_err());
         assert!(Shard::from_slurm(env(&[])).is_err());
+        // An ID outside MIN..MAX is refused, not mapped to an empty shard.
+        let err = Shard::from_slurm(env(&[
+            ("SLURM_ARRAY_TASK_ID", "99"),
+            ("SLURM_ARRAY_TASK_MIN", "1"),
+            ("SLURM_ARRAY_TASK_MAX", "5"),
+            ("SLURM_ARRAY_TASK_COUNT", "5"),
+        ]))
+        .unwrap_err();
+        assert!(err.contains("outside"), "{err}");
+        // --array=0-4:2,7 reports MIN 0 MAX 7 STEP 2 COUNT 4 in every task: refused in all.
+        for id in ["0", "2", "4", "7"] {
+            let vars = [
+                ("SLURM_ARRAY_TASK_ID", id),
+                ("SLURM_ARRAY_TASK_MIN", "0"),
+                ("SLURM_ARRAY_TASK_MAX", "7"),
+                ("SLURM_ARRAY_TASK_STEP", "2"),
+                ("SLURM_ARRAY_TASK_COUNT", "4"),
+            ];
+            let get = |k: &str| {
+                vars.iter()
+                    .find(|(n, _)| *n == k)
+                    .map(|(_, v)| v.to_string())
+            };
+            assert!(Shard::from_slurm(get).is_err(), "task {id}");
+        }
     }
 }

@@ -4,10 +4,14 @@
 pub mod case;
 pub mod config;
 pub mod discover;
+pub mod lock;
+pub mod outputs;
+pub mod paths;
 pub mod pipeline;
 pub mod plan;
 pub mod summary;
 
 pub use config::{Config, ConfigError};
 pub use discover::{discover, CaseInput, Discovery, Shard};
+pub use lock::{LockError, LockMode, LockScope, OutputLock, Wait};
 pub use plan::{Plan, StructureSettings};

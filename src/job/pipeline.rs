@@ -1,29 +1,42 @@
 //! The streaming pipeline: a loader thread reads and hashes cases, a fixed number of worker
 //! threads process them (rayon only inside a case), and the calling thread writes the results,
 //! joined by bounded channels. Cases in flight are bounded by a memory budget on their input
-//! bytes, so a cohort of 10 000 cases runs in the memory of a few. A stop flag (set on SIGTERM
-//! or SIGINT) stops the loader from taking new cases; cases in flight finish and are written.
+//! bytes, so a cohort of 10 000 cases runs in the memory of a few.
+//!
+//! Stopping: when the stop flag is set (SIGTERM, SIGINT), the loader takes no new case, and the
+//! writer returns as soon as the case it is writing (if any) is complete. Cases still being
+//! computed are abandoned: their threads are not waited for and end with the process, their
+//! folders keep whatever a previous run wrote, and a rerun redoes them. So a stop takes effect
+//! within a fraction of a second whatever the size of the cases.
 
-use super::case::{load_case, process_case, CaseOutput};
+use super::case::{load_case, process_case, CaseOutput, LoadedCase};
 use super::discover::CaseInput;
+use super::lock::{LockMode, LockScope, OutputLock, Wait};
+use super::outputs::{case_dir, is_done, read_manifest, write_case_output};
 use super::plan::Plan;
-use crate::io::write_atomically;
+use crate::io::{remove_stale_temp_files, ProtectedFiles};
 
-use crossbeam_channel::bounded;
-use serde::{Deserialize, Serialize};
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Condvar, Mutex};
+use crossbeam_channel::{bounded, RecvTimeoutError};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, Condvar, Mutex};
+use std::time::Duration;
 
-/// Input bytes are multiplied by this to estimate a case's peak memory (decoded mesh,
-/// topology, buffers, encoded outputs).
-const MEMORY_PER_INPUT_BYTE: u64 = 8;
+/// Input bytes are multiplied by this to estimate a case's peak memory (decoded meshes,
+/// topology, reference grids, smoothing buffers, metrics, encoded outputs). Measured on binary
+/// PLY phantom cases of 40 k to 4 M triangles; see `tests/run.rs` for the check against the
+/// peak resident memory of real runs.
+pub const MEMORY_PER_INPUT_BYTE: u64 = 24;
+
+/// How often the writer looks at the stop flag while it waits for a case.
+const POLL: Duration = Duration::from_millis(25);
 
 /// Options of a run.
 #[derive(Debug, Clone, Default)]
 pub struct RunOptions {
     /// Redo cases even when their manifest says they are done with the same inputs and settings.
     pub force: bool,
+    /// Input files and folders of the whole cohort: nothing is ever written onto one of them.
+    pub protected: ProtectedFiles,
 }
 
 /// What the pipeline reports as it goes.
@@ -35,9 +48,16 @@ pub enum Event {
         failed: bool,
         skipped: bool,
         structures: usize,
+        /// The first error line of each failed structure (or of the case).
+        errors: Vec<String>,
     },
     /// A case could not be written (its outputs are incomplete; a rerun redoes it).
-    WriteFailed { id: String, error: String },
+    WriteFailed {
+        id: String,
+        error: String,
+        /// The device is full or the quota used up.
+        disk_full: bool,
+    },
 }
 
 /// The outcome of a run.
@@ -48,36 +68,17 @@ pub struct RunResult {
     pub failed: Vec<String>,
     /// Cases not started because the run was stopped.
     pub not_started: usize,
+    /// Cases started but abandoned unwritten because the run was stopped.
+    pub unfinished: usize,
 }
 
-/// `manifest.json` of a case: written last, so its presence means every output is complete.
-#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
-pub struct Manifest {
-    pub key: String,
-    pub status: String,
-    pub outputs: Vec<String>,
-}
-
-/// Output folder of a case.
-pub fn case_dir(plan: &Plan, id: &str) -> PathBuf {
-    if id == "." {
-        plan.output_root.clone()
-    } else {
-        plan.output_root.join(id)
-    }
-}
-
-/// Whether a case's outputs are complete and were made from the same inputs and settings.
-fn is_done(dir: &Path, key: &str) -> bool {
-    let Ok(text) = std::fs::read(dir.join("manifest.json")) else {
-        return false;
-    };
-    let Ok(m) = serde_json::from_slice::<Manifest>(&text) else {
-        return false;
-    };
-    m.key == key
-        && dir.join("report.json").is_file()
-        && m.outputs.iter().all(|o| dir.join(o).is_file())
+/// Estimated peak memory of a case while it is processed (bytes).
+pub fn memory_estimate(case: &CaseInput) -> u64 {
+    case.meshes
+        .iter()
+        .map(|(_, p)| std::fs::metadata(p).map_or(0, |m| m.len()))
+        .sum::<u64>()
+        .saturating_mul(MEMORY_PER_INPUT_BYTE)
 }
 
 /// Bounds the estimated memory of the cases in flight.
@@ -91,7 +92,7 @@ impl Budget {
     fn acquire(&self, n: u64) {
         let mut used = self.used.lock().unwrap_or_else(|e| e.into_inner());
         // A case larger than the whole budget still runs, alone.
-        while *used > 0 && *used + n > self.limit {
+        while *used > 0 && used.saturating_add(n) > self.limit {
             used = self.freed.wait(used).unwrap_or_else(|e| e.into_inner());
         }
         *used += n;
@@ -108,31 +109,6 @@ impl Budget {
 enum Finished {
     Done(Box<CaseOutput>, u64),
     Skipped(String, u64, usize),
-}
-
-/// Writes one case's outputs, reports and (last) its manifest, each atomically.
-pub fn write_case_output(plan: &Plan, out: &CaseOutput) -> std::io::Result<()> {
-    let dir = case_dir(plan, &out.id);
-    std::fs::create_dir_all(&dir)?;
-    // A case is only redone when its earlier writing did not finish; clear what that left.
-    crate::io::remove_stale_temp_files(&dir)?;
-    for (name, bytes) in &out.files {
-        write_atomically(&dir.join(name), |w| w.write_all(bytes))?;
-    }
-    let report = serde_json::to_vec_pretty(&out.report).map_err(std::io::Error::other)?;
-    write_atomically(&dir.join("report.json"), |w| w.write_all(&report))?;
-    write_atomically(&dir.join("report.md"), |w| {
-        w.write_all(out.report.to_markdown().as_bytes())
-    })?;
-    let timings = serde_json::to_vec_pretty(&out.timings).map_err(std::io::Error::other)?;
-    write_atomically(&dir.join("timings.json"), |w| w.write_all(&timings))?;
-    let manifest = Manifest {
-        key: out.key.clone(),
-        status: out.report.status.clone(),
-        outputs: out.files.iter().map(|(n, _)| n.clone()).collect(),
-    };
-    let manifest = serde_json::to_vec_pretty(&manifest).map_err(std::io::Error::other)?;
-    write_atomically(&dir.join("manifest.json"), |w| w.write_all(&manifest))
 }
 
 /// The failed output of a case whose processing hit an internal error (a bug).
@@ -157,126 +133,224 @@ fn internal_error(id: String, key: String) -> CaseOutput {
     }
 }
 
-/// Runs the cases through the pipeline; `on_event` is called from the writer for each case.
+/// The loader: reads the cases one after the other within the memory budget; clears temp files
+/// that killed runs left in each case's folder (done or not) and passes on what is to be done.
+#[allow(clippy::too_many_arguments)]
+fn load_cases(
+    plan: &Plan,
+    cases: Vec<CaseInput>,
+    force: bool,
+    budget: &Budget,
+    started: &AtomicUsize,
+    lock: &OutputLock,
+    stop: &AtomicBool,
+    work: &crossbeam_channel::Sender<(LoadedCase, u64)>,
+    done: &crossbeam_channel::Sender<Finished>,
+) {
+    for case in cases {
+        if stop.load(Ordering::Relaxed) {
+            return;
+        }
+        let size = memory_estimate(&case);
+        budget.acquire(size);
+        // The wait may have been long: a stop during it must not start another case.
+        if stop.load(Ordering::Relaxed) {
+            budget.release(size);
+            return;
+        }
+        started.fetch_add(1, Ordering::Relaxed);
+        let loaded = load_case(plan, case);
+        let dir = case_dir(plan, &loaded.input.id);
+        let scope = LockScope::Case(loaded.input.id.clone());
+        if lock
+            .lock(&scope, LockMode::Exclusive, Wait::Until(stop))
+            .is_err()
+        {
+            return;
+        }
+        let _ = remove_stale_temp_files(&dir);
+        let already = !force && is_done(&dir, &loaded.key);
+        lock.unlock(&scope);
+        let sent = if already {
+            let n = loaded.files.len();
+            done.send(Finished::Skipped(loaded.input.id, size, n))
+                .is_ok()
+        } else {
+            work.send((loaded, size)).is_ok()
+        };
+        if !sent {
+            return;
+        }
+    }
+}
+
+/// The first line of each error of a failed case, for the console.
+fn first_error_lines(out: &CaseOutput) -> Vec<String> {
+    let first = |e: &str| e.lines().next().unwrap_or("").to_string();
+    let mut lines: Vec<String> = out
+        .report
+        .structures
+        .iter()
+        .filter_map(|s| {
+            s.error
+                .as_ref()
+                .map(|e| format!("{}: {}", s.name, first(e)))
+        })
+        .collect();
+    if lines.is_empty() {
+        lines = out.report.errors.iter().map(|e| first(e)).collect();
+    }
+    lines
+}
+
+/// Runs the cases through the pipeline; `on_event` is called from the writer (this thread) for
+/// each case. `lock` is the output root's lock file, which holds the per-case locks.
 pub fn run(
     plan: &Plan,
     cases: Vec<CaseInput>,
     options: &RunOptions,
-    stop: &AtomicBool,
+    lock: &Arc<OutputLock>,
+    stop: &Arc<AtomicBool>,
     on_event: &mut dyn FnMut(Event),
-) -> RunResult {
-    let budget = Budget {
+) -> std::io::Result<RunResult> {
+    let plan = Arc::new(plan.clone());
+    let budget = Arc::new(Budget {
         limit: plan.memory_budget_bytes,
         used: Mutex::new(0),
         freed: Condvar::new(),
-    };
-    let n_cases = cases.len();
-    let (work_tx, work_rx) = bounded::<(super::case::LoadedCase, u64)>(plan.workers);
-    let (done_tx, done_rx) = bounded::<Finished>(plan.workers);
-    let mut result = RunResult::default();
-    let mut started = 0usize;
-    std::thread::scope(|scope| {
-        // Loader.
-        let loader_done = done_tx.clone();
-        let budget = &budget;
-        let started_ref = &mut started;
-        scope.spawn(move || {
-            for case in cases {
-                if stop.load(Ordering::Relaxed) {
-                    break;
-                }
-                let size: u64 = case
-                    .meshes
-                    .iter()
-                    .map(|(_, p)| std::fs::metadata(p).map_or(0, |m| m.len()))
-                    .sum::<u64>()
-                    * MEMORY_PER_INPUT_BYTE;
-                budget.acquire(size);
-                *started_ref += 1;
-                let loaded = load_case(plan, case);
-                if !options.force && is_done(&case_dir(plan, &loaded.input.id), &loaded.key) {
-                    let skipped =
-                        Finished::Skipped(loaded.input.id.clone(), size, loaded.files.len());
-                    if loader_done.send(skipped).is_err() {
-                        break;
-                    }
-                    continue;
-                }
-                if work_tx.send((loaded, size)).is_err() {
-                    break;
-                }
-            }
-        });
-        // Workers.
-        for _ in 0..plan.workers {
-            let rx = work_rx.clone();
-            let tx = done_tx.clone();
-            scope.spawn(move || {
-                for (loaded, size) in rx {
-                    // A bug must not take the cohort down: it fails this case only.
-                    let id = loaded.input.id.clone();
-                    let key = loaded.key.clone();
-                    let out = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                        process_case(plan, loaded)
-                    }))
-                    .unwrap_or_else(|_| internal_error(id, key));
-                    if tx.send(Finished::Done(Box::new(out), size)).is_err() {
-                        break;
-                    }
-                }
-            });
-        }
-        drop(done_tx);
-        drop(work_rx);
-        // Writer: this thread.
-        for finished in done_rx {
-            match finished {
-                Finished::Skipped(id, size, structures) => {
-                    budget.release(size);
-                    let failed = std::fs::read(case_dir(plan, &id).join("manifest.json"))
-                        .ok()
-                        .and_then(|t| serde_json::from_slice::<Manifest>(&t).ok())
-                        .is_some_and(|m| m.status != "ok");
-                    if failed {
-                        result.failed.push(id.clone());
-                    }
-                    result.skipped.push(id.clone());
-                    on_event(Event::CaseDone {
-                        id,
-                        failed,
-                        skipped: true,
-                        structures,
-                    });
-                }
-                Finished::Done(out, size) => {
-                    let written = write_case_output(plan, &out);
-                    budget.release(size);
-                    match written {
-                        Ok(()) => {
-                            let failed = out.failed();
-                            if failed {
-                                result.failed.push(out.id.clone());
-                            }
-                            result.processed.push(out.id.clone());
-                            on_event(Event::CaseDone {
-                                id: out.id.clone(),
-                                failed,
-                                skipped: false,
-                                structures: out.report.structures.len(),
-                            });
-                        }
-                        Err(e) => {
-                            result.failed.push(out.id.clone());
-                            on_event(Event::WriteFailed {
-                                id: out.id.clone(),
-                                error: e.to_string(),
-                            });
-                        }
-                    }
-                }
-            }
-        }
     });
-    result.not_started = n_cases - started;
-    result
+    let started = Arc::new(AtomicUsize::new(0));
+    let n_cases = cases.len();
+    let (work_tx, work_rx) = bounded::<(LoadedCase, u64)>(plan.workers);
+    let (done_tx, done_rx) = bounded::<Finished>(plan.workers);
+    let mut handles = Vec::new();
+    {
+        let (plan, budget, started, lock, stop) = (
+            plan.clone(),
+            budget.clone(),
+            started.clone(),
+            lock.clone(),
+            stop.clone(),
+        );
+        let done = done_tx.clone();
+        let force = options.force;
+        handles.push(
+            std::thread::Builder::new()
+                .name("destair-loader".into())
+                .spawn(move || {
+                    load_cases(
+                        &plan, cases, force, &budget, &started, &lock, &stop, &work_tx, &done,
+                    )
+                })?,
+        );
+    }
+    for i in 0..plan.workers {
+        let (rx, tx, plan, stop) = (work_rx.clone(), done_tx.clone(), plan.clone(), stop.clone());
+        handles.push(
+            std::thread::Builder::new()
+                .name(format!("destair-worker-{i}"))
+                .spawn(move || {
+                    for (loaded, size) in rx {
+                        if stop.load(Ordering::Relaxed) {
+                            return;
+                        }
+                        // A bug must not take the cohort down: it fails this case only.
+                        let id = loaded.input.id.clone();
+                        let key = loaded.key.clone();
+                        let out = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                            process_case(&plan, loaded)
+                        }))
+                        .unwrap_or_else(|_| internal_error(id, key));
+                        if tx.send(Finished::Done(Box::new(out), size)).is_err() {
+                            return;
+                        }
+                    }
+                })?,
+        );
+    }
+    drop(done_tx);
+    drop(work_rx);
+    let mut result = RunResult::default();
+    let mut written = 0usize;
+    let mut stopped = false;
+    loop {
+        if stop.load(Ordering::Relaxed) {
+            stopped = true;
+            break;
+        }
+        let finished = match done_rx.recv_timeout(POLL) {
+            Ok(f) => f,
+            Err(RecvTimeoutError::Timeout) => continue,
+            Err(RecvTimeoutError::Disconnected) => break,
+        };
+        match finished {
+            Finished::Skipped(id, size, structures) => {
+                budget.release(size);
+                written += 1;
+                let failed = read_manifest(&case_dir(&plan, &id)).is_some_and(|m| m.status != "ok");
+                if failed {
+                    result.failed.push(id.clone());
+                }
+                result.skipped.push(id.clone());
+                on_event(Event::CaseDone {
+                    id,
+                    failed,
+                    skipped: true,
+                    structures,
+                    errors: Vec::new(),
+                });
+            }
+            Finished::Done(out, size) => {
+                let scope = LockScope::Case(out.id.clone());
+                if lock
+                    .lock(&scope, LockMode::Exclusive, Wait::Until(stop))
+                    .is_err()
+                {
+                    stopped = true;
+                    break;
+                }
+                let outcome = write_case_output(&plan, &out, &options.protected);
+                lock.unlock(&scope);
+                budget.release(size);
+                written += 1;
+                match outcome {
+                    Ok(()) => {
+                        let failed = out.failed();
+                        if failed {
+                            result.failed.push(out.id.clone());
+                        }
+                        result.processed.push(out.id.clone());
+                        on_event(Event::CaseDone {
+                            id: out.id.clone(),
+                            failed,
+                            skipped: false,
+                            structures: out.report.structures.len(),
+                            errors: if failed {
+                                first_error_lines(&out)
+                            } else {
+                                Vec::new()
+                            },
+                        });
+                    }
+                    Err(e) => {
+                        result.failed.push(out.id.clone());
+                        on_event(Event::WriteFailed {
+                            id: out.id.clone(),
+                            error: e.to_string(),
+                            disk_full: e.is_disk_full(),
+                        });
+                    }
+                }
+            }
+        }
+    }
+    if !stopped {
+        for h in handles {
+            let _ = h.join();
+        }
+    }
+    let started = started.load(Ordering::Relaxed);
+    result.not_started = n_cases - started.min(n_cases);
+    result.unfinished = started.saturating_sub(written);
+    Ok(result)
 }

@@ -11,6 +11,13 @@ use crate::weights::{
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
+/// Most cases processed at once: each already uses every thread, so more only adds memory.
+pub const MAX_WORKERS: usize = 256;
+/// Largest memory budget (MB): 16 TiB, beyond any machine destair runs on.
+pub const MAX_MEMORY_BUDGET_MB: u64 = 16 << 20;
+/// Deepest case folders below a root.
+pub const MAX_CASE_DEPTH: usize = 64;
+
 /// Everything that decides how one structure is processed.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct StructureSettings {
@@ -151,7 +158,12 @@ fn resolve(s: &Settings) -> Result<StructureSettings, String> {
             beta: s.beta,
             threshold: positive("threshold", s.threshold)?,
         },
-        iterations: s.iterations.unwrap_or(method.default_iterations()),
+        iterations: match s.iterations {
+            Some(n) => {
+                crate::smooth::check_iterations(n).map_err(|m| format!("iterations: {m}"))?
+            }
+            None => method.default_iterations(),
+        },
         voxel: s.voxel,
         context: ContextParams {
             staircase: s.staircase.unwrap_or(true),
@@ -236,8 +248,23 @@ impl Plan {
             )));
         }
         let workers = config.run.workers.unwrap_or(1);
-        if workers == 0 {
-            return Err(invalid("[run] workers must be at least 1".into()));
+        if !(1..=MAX_WORKERS).contains(&workers) {
+            return Err(invalid(format!(
+                "[run] workers = {workers}: must be between 1 and {MAX_WORKERS} (cases processed at once; each already uses every thread)"
+            )));
+        }
+        let memory_budget_mb = config.run.memory_budget_mb.unwrap_or(1024);
+        if !(1..=MAX_MEMORY_BUDGET_MB).contains(&memory_budget_mb) {
+            return Err(invalid(format!(
+                "[run] memory_budget_mb = {memory_budget_mb}: must be between 1 and {MAX_MEMORY_BUDGET_MB} (MB)"
+            )));
+        }
+        if let Some(d) = config.input.case_depth {
+            if d > MAX_CASE_DEPTH {
+                return Err(invalid(format!(
+                    "[input] case_depth = {d}: must be between 1 and {MAX_CASE_DEPTH}"
+                )));
+            }
         }
         Ok(Plan {
             config_path: path.to_path_buf(),
@@ -255,7 +282,7 @@ impl Plan {
             annotate: config.output.annotate,
             naming,
             workers,
-            memory_budget_bytes: config.run.memory_budget_mb.unwrap_or(1024).max(1) << 20,
+            memory_budget_bytes: memory_budget_mb << 20,
             read_mode: if config.run.plain_read {
                 ReadMode::Read
             } else {

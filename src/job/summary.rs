@@ -40,6 +40,8 @@ pub struct Summary {
     pub missing: Vec<String>,
     /// Cases with more than one report among the folders given.
     pub duplicates: Vec<String>,
+    /// Reports of cases the config no longer finds (left out of the rows and counts).
+    pub not_in_cohort: Vec<String>,
     pub rows: Vec<SummaryRow>,
 }
 
@@ -157,11 +159,19 @@ pub fn collect_reports(dirs: &[PathBuf]) -> (Vec<CaseRows>, Vec<String>) {
 /// Builds the summary of the given cases; `expected` (case ids) enables the missing check.
 pub fn summarize(cases: Vec<CaseRows>, expected: Option<&[String]>) -> Summary {
     let mut by_case: BTreeMap<String, Vec<CaseRows>> = BTreeMap::new();
+    let known: Option<std::collections::HashSet<&str>> =
+        expected.map(|e| e.iter().map(String::as_str).collect());
+    let mut not_in_cohort = std::collections::BTreeSet::new();
     for c in cases {
+        if known.as_ref().is_some_and(|k| !k.contains(c.id.as_str())) {
+            not_in_cohort.insert(c.id);
+            continue;
+        }
         by_case.entry(c.id.clone()).or_default().push(c);
     }
     let mut s = Summary {
         n_cases: by_case.len(),
+        not_in_cohort: not_in_cohort.into_iter().collect(),
         ..Default::default()
     };
     if let Some(expected) = expected {

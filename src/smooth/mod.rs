@@ -188,6 +188,21 @@ impl MethodKind {
     }
 }
 
+/// Most iterations a run may ask for: far beyond any useful smoothing (the relaxations converge
+/// within a few hundred), and a bound on how long one structure can take.
+pub const MAX_ITERATIONS: usize = 100_000;
+
+/// Checks an iteration count against 1..=[`MAX_ITERATIONS`].
+pub fn check_iterations(n: usize) -> Result<usize, String> {
+    if (1..=MAX_ITERATIONS).contains(&n) {
+        Ok(n)
+    } else {
+        Err(format!(
+            "{n} iterations: must be between 1 and {MAX_ITERATIONS}"
+        ))
+    }
+}
+
 /// What a smoothing run did.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct SmoothStats {

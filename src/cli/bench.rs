@@ -1,0 +1,162 @@
+//! `destair bench`: throughput of the stages on generated meshes.
+
+use std::path::PathBuf;
+
+#[derive(clap::Subcommand)]
+pub enum Args {
+    /// Stack axis, staircase weights, caps, and exact distance queries per second.
+    Context {
+        /// Approximate number of triangles of the `big` phantom (and of query points).
+        #[arg(long, default_value_t = 1_000_000)]
+        triangles: usize,
+        #[arg(long, default_value_t = 3)]
+        repeat: usize,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Every smoother (seconds per run, vertex updates per second) and the Hausdorff metric.
+    Smooth {
+        /// Approximate number of triangles of the `big` phantom.
+        #[arg(long, default_value_t = 1_000_000)]
+        triangles: usize,
+        #[arg(long, default_value_t = 20)]
+        iterations: usize,
+        /// Runs per measurement; the best is reported.
+        #[arg(long, default_value_t = 3)]
+        repeat: usize,
+        #[arg(long)]
+        json: bool,
+    },
+    /// PLY read+validate, write and topology build on a generated closed mesh.
+    Io {
+        /// Approximate number of triangles.
+        #[arg(long, default_value_t = 5_000_000)]
+        triangles: usize,
+        /// Folder for the temporary PLY file (default: the system temp folder).
+        #[arg(long)]
+        dir: Option<PathBuf>,
+        /// Mesh to run on: the `big` phantom (marching-cubes blob) or a regular torus.
+        #[arg(long, value_enum, default_value_t = MeshArg::Phantom)]
+        mesh: MeshArg,
+        /// Permute vertex numbering (worst-case memory locality).
+        #[arg(long)]
+        shuffle: bool,
+        /// Runs per measurement; the best is reported.
+        #[arg(long, default_value_t = 5)]
+        repeat: usize,
+        /// Print the results as JSON.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum MeshArg {
+    Phantom,
+    Torus,
+}
+
+pub fn exec(args: Args) -> anyhow::Result<()> {
+    match args {
+        Args::Context {
+            triangles,
+            repeat,
+            json,
+        } => {
+            let r = destair::bench::context(triangles, repeat);
+            if json {
+                println!("{}", serde_json::to_string_pretty(&r)?);
+                return Ok(());
+            }
+            println!(
+                "bench context: {} vertices, {} triangles, {} threads, best of {repeat}",
+                r.n_vertices, r.n_triangles, r.threads
+            );
+            println!("  topology           {:.4} s", r.topology_s);
+            println!("  stack axis         {:.4} s", r.stack_axis_s);
+            println!("  staircase weights  {:.4} s", r.staircase_weights_s);
+            println!("  caps               {:.4} s", r.caps_s);
+            println!("  triangle grid      {:.4} s", r.grid_build_s);
+            println!(
+                "  {} exact queries  {:.4} s  ({:.2} M queries/s)",
+                r.n_queries,
+                r.queries_s,
+                r.queries_per_s / 1e6
+            );
+        }
+        Args::Smooth {
+            triangles,
+            iterations,
+            repeat,
+            json,
+        } => {
+            let r = destair::bench::smooth(triangles, iterations, repeat);
+            if json {
+                println!("{}", serde_json::to_string_pretty(&r)?);
+                return Ok(());
+            }
+            println!(
+                "bench smooth: {} vertices, {} triangles, {} iterations, {} threads, best of {repeat}",
+                r.n_vertices, r.n_triangles, r.iterations, r.threads
+            );
+            for t in &r.smoothers {
+                println!(
+                    "  {:<10} {:.4} s  {:.1} M vertex-updates/s",
+                    t.method,
+                    t.seconds,
+                    t.vertex_updates_per_s / 1e6
+                );
+            }
+            println!(
+                "  hausdorff  {:.4} s  ({:.2} M point-to-surface queries/s, grids included)",
+                r.hausdorff_s,
+                r.hausdorff_queries_per_s / 1e6
+            );
+        }
+        Args::Io {
+            triangles,
+            dir,
+            mesh,
+            shuffle,
+            repeat,
+            json,
+        } => {
+            let dir = dir.unwrap_or_else(std::env::temp_dir);
+            let kind = match mesh {
+                MeshArg::Phantom => destair::bench::BenchMesh::Phantom,
+                MeshArg::Torus => destair::bench::BenchMesh::Torus,
+            };
+            let r = destair::bench::io(&dir, triangles, kind, shuffle, repeat)?;
+            if json {
+                println!("{}", serde_json::to_string_pretty(&r)?);
+                return Ok(());
+            }
+            println!(
+                "bench io: {:?} mesh, {} vertices, {} triangles{}, binary PLY {:.1} MB, {} threads, best of {repeat}",
+                r.mesh,
+                r.n_vertices,
+                r.n_triangles,
+                if r.shuffled { " (shuffled numbering)" } else { "" },
+                r.file_bytes as f64 / 1e6,
+                r.threads
+            );
+            println!(
+                "  read+validate (mmap)  {:.4} s  {:.0} MB/s",
+                r.read_mmap_s, r.read_mmap_mb_per_s
+            );
+            println!("  read+validate (read)  {:.4} s", r.read_plain_s);
+            println!(
+                "  write (atomic)        {:.4} s  {:.0} MB/s",
+                r.write_s, r.write_mb_per_s
+            );
+            println!("  topology build        {:.4} s", r.topology_s);
+            println!(
+                "  STL ({:.1} MB) write  {:.4} s, read+weld {:.4} s",
+                r.stl_file_bytes as f64 / 1e6,
+                r.stl_write_s,
+                r.stl_read_s
+            );
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,200 @@
+//! `destair smooth`: one mesh through one of the papers' smoothers.
+
+use super::{read_input, refuse_overwriting_inputs, ContextArgs, UsageError};
+use destair::io::ReadOptions;
+use std::path::PathBuf;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Input mesh (.ply, .stl, .obj).
+    input: PathBuf,
+    /// Output mesh (.ply or .stl); vertex order is kept.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// laplace, hc, taubin, mcf, npc, cell-size, cell-edge or diamond.
+    #[arg(long)]
+    method: destair::smooth::MethodKind,
+    /// Iterations (the maximum for cell-size, cell-edge and diamond, which stop on convergence).
+    #[arg(long)]
+    iterations: Option<usize>,
+    /// Step factor (default 0.5; 1 for the constrained relaxations).
+    #[arg(long)]
+    lambda: Option<f32>,
+    /// Taubin's negative factor (default -0.53).
+    #[arg(long, allow_negative_numbers = true)]
+    mu: Option<f32>,
+    /// Laplace+HC: pull towards the original (0, default) or previous (1) positions.
+    #[arg(long)]
+    alpha: Option<f32>,
+    /// Laplace+HC: share of a vertex's own correction (default 0.5).
+    #[arg(long)]
+    beta: Option<f32>,
+    /// Voxel size in mm as X,Y,Z (default: reconstructed from the mesh).
+    #[arg(long, value_parser = super::parse_voxel)]
+    voxel: Option<[f32; 3]>,
+    /// Relaxations stop when no vertex moves more than this in one iteration (mm; default 0.002).
+    #[arg(long)]
+    threshold: Option<f32>,
+    /// PLY file with a per-vertex `weight` property in [0, 1] (same vertices as the input).
+    #[arg(long)]
+    weights: Option<PathBuf>,
+    /// Let vertices on open boundary loops move (by default clipped rims stay in place).
+    #[arg(long)]
+    move_boundary: bool,
+    /// Add `weight` and `displacement` (mm) vertex properties to a PLY output.
+    #[arg(long)]
+    annotate: bool,
+    /// Weight by staircases (Moench): smooth artifacts, keep the rest.
+    #[arg(long)]
+    staircase: bool,
+    /// Allow the output to replace the input file.
+    #[arg(long)]
+    force: bool,
+    #[command(flatten)]
+    ctx: ContextArgs,
+}
+
+pub fn exec(args: Args) -> anyhow::Result<()> {
+    use destair::smooth::{boundary_vertices, smooth};
+    let Args {
+        input,
+        output,
+        method,
+        iterations,
+        lambda,
+        mu,
+        alpha,
+        beta,
+        voxel,
+        threshold,
+        weights,
+        move_boundary,
+        annotate,
+        staircase,
+        force,
+        ctx,
+    } = args;
+    ctx.check()?;
+    let mut inputs = vec![input.as_path()];
+    inputs.extend(weights.as_deref());
+    inputs.extend(ctx.references.iter().map(PathBuf::as_path));
+    refuse_overwriting_inputs(&output, &inputs, force)?;
+    if let Some(n) = iterations {
+        destair::smooth::check_iterations(n)
+            .map_err(|m| UsageError(format!("--iterations: {m}")))?;
+    }
+    let loaded = read_input(&input, &ReadOptions::default())?;
+    let mesh = &loaded.mesh;
+    let topology = destair::Topology::build(mesh);
+    let voxel = match (voxel, method.needs_voxel()) {
+        (Some(v), _) => v,
+        (None, false) => [1.0; 3],
+        (None, true) => {
+            let est = destair::analysis::voxel_size(mesh, &topology);
+            let s = est.spacing().ok_or_else(|| {
+                UsageError(format!(
+                    "{}: cannot reconstruct the voxel size from the mesh ({est:?}); pass --voxel X,Y,Z",
+                    input.display()
+                ))
+            })?;
+            s.map(|x| x as f32)
+        }
+    };
+    let params = destair::smooth::MethodParams {
+        lambda,
+        mu,
+        alpha,
+        beta,
+        threshold,
+    };
+    let kind = method;
+    let method = kind.build(&params, voxel);
+    let iterations = iterations.unwrap_or(kind.default_iterations());
+    let context_on = staircase || !ctx.references.is_empty();
+    let weights = match weights {
+        None if context_on => {
+            let grids = ctx.reference_grids()?;
+            let refs: Vec<&destair::spatial::TriangleGrid> = grids.iter().collect();
+            let analysis =
+                destair::weights::context_weights(mesh, &topology, &ctx.params(staircase), &refs);
+            let summary = destair::report::inspect::context_summary(&analysis, mesh.n_vertices());
+            eprint!("{}", summary.to_text());
+            analysis.weights
+        }
+        None => destair::weights::VertexWeights::uniform(mesh.n_vertices()),
+        Some(path) => {
+            let options = ReadOptions {
+                keep_vertex_properties: true,
+                ..Default::default()
+            };
+            let w = read_input(&path, &options)?;
+            let values = w
+                .vertex_properties
+                .into_iter()
+                .find(|p| p.name == "weight")
+                .ok_or_else(|| {
+                    UsageError(format!("{}: no vertex property 'weight'", path.display()))
+                })?
+                .values;
+            destair::weights::VertexWeights::new(values, mesh.n_vertices())
+                .map_err(|e| UsageError(format!("{}: {e}", path.display())))?
+        }
+    };
+    let fixed = if move_boundary {
+        vec![false; mesh.n_vertices()]
+    } else {
+        boundary_vertices(&topology)
+    };
+    let started = std::time::Instant::now();
+    let (positions, stats) = smooth(mesh, &topology, &method, iterations, &weights, &fixed);
+    let seconds = started.elapsed().as_secs_f64();
+    let mut smoothed = mesh.clone();
+    smoothed.positions_mut().copy_from_slice(&positions);
+    let lengths: Vec<f32> = destair::metrics::displacements(mesh.positions(), &positions)
+        .into_iter()
+        .map(|d| d as f32)
+        .collect();
+    match output
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .as_deref()
+    {
+        Some("ply") => {
+            let props: Vec<(&str, &[f32])> = if annotate {
+                vec![("weight", weights.as_slice()), ("displacement", &lengths)]
+            } else {
+                Vec::new()
+            };
+            destair::io::ply::write_ply(&output, &smoothed, &loaded.meta, &props)?
+        }
+        Some("stl") => destair::io::stl::write_stl(&output, &smoothed, &loaded.meta)?,
+        _ => {
+            return Err(UsageError(format!(
+                "{}: output must end in .ply or .stl",
+                output.display()
+            ))
+            .into())
+        }
+    }
+    println!(
+        "{} {}: {} iterations{} in {:.3} s, last step {:.5} mm, {} vertices fixed -> {}",
+        method.name(),
+        input.display(),
+        stats.iterations,
+        if method.is_relaxation() {
+            if stats.converged {
+                " (converged)"
+            } else {
+                " (not converged)"
+            }
+        } else {
+            ""
+        },
+        seconds,
+        stats.last_max_step,
+        stats.n_fixed,
+        output.display()
+    );
+    Ok(())
+}

@@ -1,0 +1,154 @@
+//! Paths compared by what they are, not how they are spelled: `cases/../cases`, `./cases/` and
+//! a symlink to `cases` are one folder. Used to refuse output roots that would write over the
+//! inputs, and to collect the identities of a run's inputs as the last line of defence.
+
+use super::discover::CaseInput;
+use super::lock::is_output_root;
+use crate::io::ProtectedFiles;
+use std::path::{Component, Path, PathBuf};
+
+/// The canonical form of a path that may not exist yet: the longest existing prefix resolved
+/// (symlinks, `..`), the rest appended with `.` and `..` applied lexically.
+pub fn canonical(path: &Path) -> PathBuf {
+    let absolute = if path.is_absolute() {
+        path.to_path_buf()
+    } else {
+        std::env::current_dir().unwrap_or_default().join(path)
+    };
+    let mut existing = absolute.as_path();
+    let mut tail: Vec<&std::ffi::OsStr> = Vec::new();
+    loop {
+        if let Ok(c) = existing.canonicalize() {
+            let mut out = c;
+            for part in tail.iter().rev() {
+                match Path::new(part).components().next() {
+                    Some(Component::ParentDir) => {
+                        out.pop();
+                    }
+                    Some(Component::CurDir) | None => {}
+                    _ => out.push(part),
+                }
+            }
+            return out;
+        }
+        match (existing.parent(), existing.file_name()) {
+            (Some(parent), Some(name)) => {
+                tail.push(name);
+                existing = parent;
+            }
+            // `..` or `.` as the last component of a missing path: keep it for the lexical pass.
+            (Some(parent), None) => {
+                tail.push(
+                    existing
+                        .components()
+                        .next_back()
+                        .map_or(std::ffi::OsStr::new("."), |c| c.as_os_str()),
+                );
+                existing = parent;
+            }
+            (None, _) => return absolute,
+        }
+    }
+}
+
+/// Checks an output root against the input roots: it must not be a file, must not be an input
+/// root or hold one (its marker would hide the cases), and no input root may be an earlier
+/// run's output root.
+pub fn check_output_root(output_root: &Path, roots: &[PathBuf]) -> Result<(), String> {
+    if output_root.exists() && !output_root.is_dir() {
+        return Err(format!(
+            "{}: the output root exists and is not a folder",
+            output_root.display()
+        ));
+    }
+    let out = canonical(output_root);
+    for root in roots {
+        let r = canonical(root);
+        if r == out {
+            return Err(format!(
+                "the output root {} is the input root {} (the same folder): outputs would overwrite the inputs; choose another [output] root",
+                output_root.display(),
+                root.display()
+            ));
+        }
+        if r.starts_with(&out) {
+            return Err(format!(
+                "the output root {} holds the input root {}: choose an output folder that does not contain the inputs",
+                output_root.display(),
+                root.display()
+            ));
+        }
+        if is_output_root(&r) {
+            return Err(format!(
+                "the input root {} is a destair output folder; its files are outputs, not cases",
+                root.display()
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Refuses an output folder for one case that is the case's own input folder.
+pub fn check_case_output(case_out: &Path, case_dir: &Path) -> Result<(), String> {
+    if canonical(case_out) == canonical(case_dir) {
+        return Err(format!(
+            "the outputs of {} would go into that same folder ({}): choose an output root elsewhere",
+            case_dir.display(),
+            case_out.display()
+        ));
+    }
+    Ok(())
+}
+
+/// The identities of every input file and case folder of `cases` (and of the roots).
+pub fn protected_inputs<'a>(
+    cases: impl IntoIterator<Item = &'a CaseInput>,
+    roots: &[PathBuf],
+) -> ProtectedFiles {
+    let mut p = ProtectedFiles::default();
+    for r in roots {
+        p.insert(r);
+    }
+    for c in cases {
+        p.insert(&c.dir);
+        for (_, f) in &c.meshes {
+            p.insert(f);
+        }
+    }
+    p
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn spellings_of_one_folder_are_one_path() {
+        let tmp = tempfile::tempdir().unwrap();
+        let base = tmp.path().canonicalize().unwrap();
+        let cases = base.join("cases");
+        std::fs::create_dir_all(cases.join("a")).unwrap();
+        std::os::unix::fs::symlink(&cases, base.join("link")).unwrap();
+        for spelling in [
+            "cases",
+            "cases/",
+            "./cases",
+            "cases/../cases",
+            "cases/a/..",
+            "link",
+            "link/a/../",
+            "missing/../cases",
+        ] {
+            assert_eq!(canonical(&base.join(spelling)), cases, "{spelling}");
+        }
+        assert_eq!(canonical(&base.join("out/x/../y")), base.join("out/y"));
+        let roots = [base.join("cases")];
+        assert!(check_output_root(&base.join("cases/../cases"), &roots).is_err());
+        assert!(check_output_root(&base.join("link"), &roots).is_err());
+        assert!(check_output_root(&base, &roots).is_err());
+        assert!(check_output_root(&base.join("out"), &roots).is_ok());
+        assert!(check_output_root(&base.join("cases/out"), &roots).is_ok());
+        std::fs::write(base.join("file"), b"x").unwrap();
+        assert!(check_output_root(&base.join("file"), &roots).is_err());
+    }
+}
