@@ -2,6 +2,8 @@
 //! dialect the reader must accept, built byte by byte so they do not depend on destair's writer.
 #![allow(dead_code)]
 
+pub mod cohort;
+
 use destair::Mesh;
 
 /// An octahedron with awkward float values, plus one unreferenced vertex at the end.

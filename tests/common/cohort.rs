@@ -1,0 +1,106 @@
+//! Cohort fixtures for the runner's end-to-end tests: the binary, phantom cohorts, a config,
+//! and snapshots of output folders.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// Runs the destair binary to completion.
+pub fn destair(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_destair"))
+        .args(args)
+        .output()
+        .expect("run destair")
+}
+
+/// Stderr of a run as text.
+pub fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+pub const CONFIG: &str = r#"
+[input]
+roots = ["cases"]
+case_depth = 1
+
+[output]
+root = "out"
+formats = ["ply", "stl"]
+
+[defaults]
+method = "hc"
+staircase = true
+caps = "smooth"
+
+[[structure]]
+pattern = "tumor"
+references = ["vein", "trachea"]
+
+[[structure]]
+pattern = "vein"
+references = ["tumor"]
+caps = "preserve"
+
+[[structure]]
+pattern = "trachea"
+skip = true
+"#;
+
+/// A cohort of `n` phantom cases plus, optionally, a case with a corrupt mesh and a case whose
+/// tumor's reference (vein) is missing. Returns the config path.
+pub fn cohort(dir: &Path, n: usize, broken: bool) -> PathBuf {
+    let cases = dir.join("cases");
+    let run = destair(&[
+        "phantom",
+        "cohort",
+        "--cases",
+        &n.to_string(),
+        "--out",
+        cases.to_str().unwrap(),
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    if broken {
+        let corrupt = cases.join("zz-corrupt");
+        std::fs::create_dir_all(&corrupt).unwrap();
+        std::fs::copy(
+            cases.join("case-000/trachea.ply"),
+            corrupt.join("trachea.ply"),
+        )
+        .unwrap();
+        let mut bytes = std::fs::read(cases.join("case-000/tumor.ply")).unwrap();
+        bytes.truncate(bytes.len() / 2);
+        std::fs::write(corrupt.join("tumor.ply"), bytes).unwrap();
+        let missing = cases.join("zz-missing-ref");
+        std::fs::create_dir_all(&missing).unwrap();
+        for s in ["tumor", "trachea"] {
+            std::fs::copy(
+                cases.join(format!("case-001/{s}.ply")),
+                missing.join(format!("{s}.ply")),
+            )
+            .unwrap();
+        }
+    }
+    let config = dir.join("cohort.toml");
+    std::fs::write(&config, CONFIG).unwrap();
+    config
+}
+
+/// Every file under `dir` (relative path -> bytes), except timings.json.
+pub fn snapshot(dir: &Path) -> BTreeMap<String, Vec<u8>> {
+    let mut out = BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else if p.file_name().unwrap() != "timings.json" {
+                out.insert(
+                    p.strip_prefix(dir).unwrap().display().to_string(),
+                    std::fs::read(&p).unwrap(),
+                );
+            }
+        }
+    }
+    out
+}
