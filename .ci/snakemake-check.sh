@@ -13,6 +13,6 @@ cp "$OLDPWD/config/demo.toml" cohort.toml
 "$destair" run cohort.toml
 mv out out-run
 "$work/venv/bin/snakemake" -s "$OLDPWD/examples/Snakefile" --cores 2 --quiet \
-    --config cohort=cohort.toml cases=cases out=out destair="$destair"
+    --config cohort=cohort.toml out=out destair="$destair"
 diff -r -x timings.json out out-run
 echo "snakemake: same outputs as destair run"

@@ -13,6 +13,7 @@ pub mod phantom;
 pub mod report;
 pub mod smooth;
 pub mod spatial;
+pub mod units;
 pub mod weights;
 
 pub use mesh::{Mesh, Topology};

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::cohort::{cohort, destair, snapshot};
+use common::cohort::{cohort, destair, peak_rss_kb, snapshot};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -215,25 +215,6 @@ fn usage_errors_exit_2() {
     assert!(destair(&["check", good.to_str().unwrap()]).status.success());
 }
 
-/// Peak resident memory (kB) of a child run, from wait4's rusage (which also reaps it).
-#[allow(clippy::zombie_processes)]
-fn peak_rss_kb(args: &[&str]) -> i64 {
-    let child = Command::new(env!("CARGO_BIN_EXE_destair"))
-        .args(args)
-        .stderr(std::process::Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut status = 0;
-    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
-    let pid = unsafe { libc::wait4(child.id() as i32, &mut status, 0, &mut usage) };
-    assert_eq!(pid, child.id() as i32);
-    assert!(
-        libc::WIFEXITED(status) && libc::WEXITSTATUS(status) == 0,
-        "run failed: {status}"
-    );
-    usage.ru_maxrss
-}
-
 /// A cohort of `n` copies of one phantom case, so that only the number of cases differs.
 fn copies(dir: &Path, n: usize) -> PathBuf {
     let config = cohort(dir, 1, false);
@@ -258,8 +239,9 @@ fn peak_memory_does_not_grow_with_the_cohort() {
     let large = tempfile::tempdir().unwrap();
     let small_config = copies(small.path(), 20);
     let large_config = copies(large.path(), 200);
-    let rss_small = peak_rss_kb(&["run", small_config.to_str().unwrap()]);
-    let rss_large = peak_rss_kb(&["run", large_config.to_str().unwrap()]);
+    let (rss_small, code_small) = peak_rss_kb(&["run", small_config.to_str().unwrap()]);
+    let (rss_large, code_large) = peak_rss_kb(&["run", large_config.to_str().unwrap()]);
+    assert_eq!((code_small, code_large), (Some(0), Some(0)));
     eprintln!("peak RSS: 20 cases {rss_small} kB, 200 cases {rss_large} kB");
     assert!(
         (rss_large as f64) <= 1.2 * rss_small as f64,

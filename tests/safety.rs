@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::cohort::{cohort, destair, snapshot, stderr};
+use common::cohort::{cohort, destair, peak_rss_kb, smooth, snapshot, stderr};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -139,14 +139,7 @@ fn smooth_and_export_refuse_to_overwrite_their_input() {
     let before = std::fs::read(&tumor).unwrap();
     let spelled = dir.join("cases/case-000/../case-000/tumor.ply");
     for out in [&tumor, &spelled] {
-        let run = destair(&[
-            "smooth",
-            tumor.to_str().unwrap(),
-            "-o",
-            out.to_str().unwrap(),
-            "--method",
-            "laplace",
-        ]);
+        let run = smooth(&tumor, out, "laplace", &[]);
         assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
         assert!(stderr(&run).contains("--force"), "{}", stderr(&run));
     }
@@ -158,15 +151,7 @@ fn smooth_and_export_refuse_to_overwrite_their_input() {
     ]);
     assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
     assert_eq!(std::fs::read(&tumor).unwrap(), before);
-    let run = destair(&[
-        "smooth",
-        tumor.to_str().unwrap(),
-        "-o",
-        tumor.to_str().unwrap(),
-        "--method",
-        "laplace",
-        "--force",
-    ]);
+    let run = smooth(&tumor, &tumor, "laplace", &["--force"]);
     assert!(run.status.success(), "{}", stderr(&run));
     assert_ne!(std::fs::read(&tumor).unwrap(), before);
 }
@@ -190,21 +175,24 @@ fn slow_cohort(dir: &Path, triangles: u64, iterations: usize) -> PathBuf {
     )
 }
 
+/// Reads a spawned run's stderr until its first line, which it prints once it holds its output
+/// folder; the rest of stderr is drained in the background.
+fn wait_until_running(child: &mut Child) {
+    use std::io::BufRead;
+    let mut lines = std::io::BufReader::new(child.stderr.take().unwrap()).lines();
+    let first = lines.next().unwrap().unwrap();
+    assert!(first.contains("destair:"), "{first}");
+    std::thread::spawn(move || lines.for_each(drop));
+}
+
 #[test]
 fn one_run_at_a_time_per_output_folder() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
     let c = slow_cohort(dir, 100_000, 100_000);
     let mut first = spawn(&["run", c.to_str().unwrap()]);
-    // Wait until the first run holds the folder (its marker exists and a second run is refused).
-    let started = Instant::now();
-    let second = loop {
-        let second = destair(&["run", c.to_str().unwrap()]);
-        if second.status.code() == Some(2) || started.elapsed() > Duration::from_secs(20) {
-            break second;
-        }
-        std::thread::sleep(Duration::from_millis(100));
-    };
+    wait_until_running(&mut first);
+    let second = destair(&["run", c.to_str().unwrap()]);
     let err = stderr(&second);
     assert_eq!(second.status.code(), Some(2), "{err}");
     assert!(
@@ -432,16 +420,7 @@ fn absurd_limits_are_refused() {
         stderr(&run)
     );
     let out = dir.join("x.ply");
-    let run = destair(&[
-        "smooth",
-        tumor.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--method",
-        "hc",
-        "--iterations",
-        "100000000000",
-    ]);
+    let run = smooth(&tumor, &out, "hc", &["--iterations", "100000000000"]);
     assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
 }
 
@@ -466,23 +445,6 @@ fn devices_fifos_and_folders_are_refused_at_once() {
     let run = destair(&["check", "/dev/zero"]);
     assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
     assert!(stderr(&run).contains("not a regular file"));
-}
-
-/// Peak resident memory (kB) and exit code of a child run, from wait4's rusage.
-#[allow(clippy::zombie_processes)]
-fn peak_rss_kb(args: &[&str]) -> (i64, Option<i32>) {
-    let child = Command::new(env!("CARGO_BIN_EXE_destair"))
-        .args(args)
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut status = 0;
-    // SAFETY: rusage is plain data; wait4 reaps our own child and fills it in.
-    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
-    let pid = unsafe { libc::wait4(child.id() as i32, &mut status, 0, &mut usage) };
-    assert_eq!(pid, child.id() as i32);
-    let code = libc::WIFEXITED(status).then(|| libc::WEXITSTATUS(status));
-    (usage.ru_maxrss, code)
 }
 
 #[test]

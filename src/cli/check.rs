@@ -12,8 +12,20 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     let plan = load_plan(&args.config)?;
     destair::job::paths::check_output_root(&plan.output_root, &plan.roots).map_err(UsageError)?;
     let found = destair::job::discover(&plan);
-    for w in &found.warnings {
+    let review = destair::job::review::review(&plan, &found);
+    for w in found.warnings.iter().chain(&review.warnings) {
         println!("warning: {w}");
+    }
+    for s in &found.skipped_folders {
+        println!("warning: skipped folder {s}");
+    }
+    if !review.errors.is_empty() {
+        return Err(UsageError(format!(
+            "{}: {}",
+            args.config.display(),
+            review.errors.join("\n  ")
+        ))
+        .into());
     }
     let names: std::collections::BTreeSet<&str> = found
         .cases
@@ -30,13 +42,13 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     for n in names {
         let tables = plan.matching_tables(n);
         println!(
-            "\n[{n}] (from [defaults]{})",
+            "\n# {n}: [defaults]{}",
             tables
                 .iter()
                 .map(|t| format!(" + [[structure]] {t:?}"))
                 .collect::<String>()
         );
-        println!("{}", serde_json::to_string_pretty(&plan.settings_for(n))?);
+        print!("{}", plan.settings_for(n).config_view());
     }
     Ok(())
 }

@@ -32,7 +32,9 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         config.display()
     );
     let plan = load_plan(&config)?;
-    let cases = super::run::discover_all(&plan, &config)?;
+    let found = super::run::discover_all(&plan, &config)?;
+    let notes = destair::job::summary::CohortNotes::of(&found);
+    let cases = found.cases;
     let signals = super::run::Signals::install()?;
     let lock = std::sync::Arc::new(OutputLock::open(&plan.output_root)?);
     lock.lock(&LockScope::Root, LockMode::Exclusive, Wait::No)?;
@@ -40,7 +42,7 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         force: false,
         protected: destair::job::paths::protected_inputs(&cases, &plan.roots),
     };
-    super::run::run_cases(&plan, cases, &options, true, &lock, &signals)?;
+    super::run::run_cases(&plan, cases, &options, Some(&notes), &lock, &signals)?;
     println!("outputs and reports: {}", plan.output_root.display());
     Ok(())
 }

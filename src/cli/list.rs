@@ -40,10 +40,7 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         ),
         Some(s) => Some(destair::job::Shard::parse(s).map_err(super::UsageError)?),
     };
-    let found = destair::job::discover(&plan);
-    for w in &found.warnings {
-        eprintln!("warning: {w}");
-    }
+    let found = super::run::discover_all(&plan, &args.config)?;
     for c in found
         .cases
         .iter()

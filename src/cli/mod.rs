@@ -37,6 +37,11 @@ pub struct Interrupted(pub i32);
 #[error("{0}")]
 pub struct CasesFailed(pub String);
 
+/// A result that cannot be trusted (a diverged smoothing), so nothing was written (exit 3).
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct Rejected(pub String);
+
 /// The exit code for an error: 2 usage, 3 bad input or failed cases, 128 + n signals, else 1.
 pub fn exit_code(e: &anyhow::Error) -> u8 {
     if let Some(Interrupted(signal)) = e.downcast_ref::<Interrupted>() {
@@ -45,7 +50,9 @@ pub fn exit_code(e: &anyhow::Error) -> u8 {
         || e.downcast_ref::<destair::job::LockError>().is_some()
     {
         2
-    } else if e.downcast_ref::<CasesFailed>().is_some() || e.downcast_ref::<InputError>().is_some()
+    } else if e.downcast_ref::<CasesFailed>().is_some()
+        || e.downcast_ref::<InputError>().is_some()
+        || e.downcast_ref::<Rejected>().is_some()
     {
         3
     } else {

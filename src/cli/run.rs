@@ -5,7 +5,8 @@ use super::{clock, load_plan, CasesFailed, Interrupted, UsageError};
 use destair::job::outputs::{orphan_case_dirs, prune_case_dir};
 use destair::job::paths::{check_output_root, protected_inputs};
 use destair::job::pipeline::{Event, RunOptions};
-use destair::job::{CaseInput, LockMode, LockScope, OutputLock, Plan, Shard, Wait};
+use destair::job::summary::CohortNotes;
+use destair::job::{CaseInput, Discovery, LockMode, LockScope, OutputLock, Plan, Shard, Wait};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -87,25 +88,30 @@ fn shard_of(arg: &Option<String>) -> anyhow::Result<Option<Shard>> {
     }
 }
 
-/// The plan's cases; discovery warnings go to stderr. Errors when there is none at all.
-pub fn discover_all(plan: &Plan, config: &std::path::Path) -> anyhow::Result<Vec<CaseInput>> {
+/// Discovers and reviews the plan's cases: discovery warnings, skipped folders and review
+/// warnings go to stderr; review errors (no cases, a missing root, a reference no case has)
+/// are a usage error.
+pub fn discover_all(plan: &Plan, config: &std::path::Path) -> anyhow::Result<Discovery> {
     let found = destair::job::discover(plan);
     for w in &found.warnings {
         eprintln!("warning: {w}");
     }
-    if found.cases.is_empty() {
+    for s in &found.skipped_folders {
+        eprintln!("warning: skipped folder {s}");
+    }
+    let review = destair::job::review::review(plan, &found);
+    for w in &review.warnings {
+        eprintln!("warning: {w}");
+    }
+    if !review.errors.is_empty() {
         return Err(UsageError(format!(
-            "{}: no cases found under {} (check [input] roots, case_depth and extensions or patterns)",
+            "{}: {}",
             config.display(),
-            plan.roots
-                .iter()
-                .map(|r| r.display().to_string())
-                .collect::<Vec<_>>()
-                .join(", ")
+            review.errors.join("\n  ")
         ))
         .into());
     }
-    Ok(found.cases)
+    Ok(found)
 }
 
 /// Opens and locks an output root for a run; a busy folder is a usage error naming the holder.
@@ -144,7 +150,9 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         .into());
     }
     let signals = Signals::install()?;
-    let all = discover_all(&plan, &args.config)?;
+    let found = discover_all(&plan, &args.config)?;
+    let notes = CohortNotes::of(&found);
+    let all = found.cases;
     let protected = protected_inputs(&all, &plan.roots);
     let ids: Vec<String> = all.iter().map(|c| c.id.clone()).collect();
     let cases: Vec<CaseInput> = all
@@ -206,7 +214,8 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         force: args.force,
         protected,
     };
-    run_cases(&plan, cases, &options, shard.is_none(), &lock, &signals)
+    let summary = shard.is_none().then_some(&notes);
+    run_cases(&plan, cases, &options, summary, &lock, &signals)
 }
 
 pub fn exec_case(args: CaseArgs) -> anyhow::Result<()> {
@@ -246,11 +255,25 @@ pub fn exec_case(args: CaseArgs) -> anyhow::Result<()> {
         force: args.force,
         protected: protected_inputs([&case], std::slice::from_ref(&dir)),
     };
-    run_cases(&plan, vec![case], &options, false, &lock, &signals)
+    run_cases(&plan, vec![case], &options, None, &lock, &signals)
 }
 
 fn plural(n: usize, one: &str, many: &str) -> String {
     format!("{n} {}", if n == 1 { one } else { many })
+}
+
+/// "no failures", "3 structures failed in 2 cases", or "2 cases failed" (cases that failed as a
+/// whole or in an earlier run).
+fn failures(cases: usize, structures: usize) -> String {
+    match (cases, structures) {
+        (0, _) => "no failures".into(),
+        (c, 0) => format!("{} failed", plural(c, "case", "cases")),
+        (c, s) => format!(
+            "{} failed in {}",
+            plural(s, "structure", "structures"),
+            plural(c, "case", "cases")
+        ),
+    }
 }
 
 /// Runs cases through the pipeline with progress lines, signal handling and the exit policy.
@@ -258,7 +281,7 @@ pub fn run_cases(
     plan: &Plan,
     cases: Vec<CaseInput>,
     options: &RunOptions,
-    write_summary: bool,
+    summary_notes: Option<&CohortNotes>,
     lock: &Arc<OutputLock>,
     signals: &Signals,
 ) -> anyhow::Result<()> {
@@ -267,6 +290,7 @@ pub fn run_cases(
     let started = std::time::Instant::now();
     let mut last_log = std::time::Instant::now();
     let (mut done, mut failed, mut skipped, mut n_structures) = (0usize, 0usize, 0usize, 0usize);
+    let mut failed_structures = 0usize;
     let mut disk_full_told = false;
     eprintln!(
         "[{}] destair: {}, {} worker{}, {} threads",
@@ -299,12 +323,14 @@ pub fn run_cases(
                 failed: f,
                 skipped: s,
                 structures,
+                failed_structures: n_failed,
                 errors,
             } => {
                 done += 1;
                 n_structures += structures;
                 failed += f as usize;
                 skipped += s as usize;
+                failed_structures += n_failed;
                 if f && !s {
                     say(format!("[{}] case {id} failed:", clock()));
                     for e in errors {
@@ -343,8 +369,9 @@ pub fn run_cases(
         if let Some(b) = &bar {
             b.set_position(done as u64);
             b.set_message(format!(
-                "{}, {failed} failed, {skipped} already done",
-                plural(n_structures, "structure", "structures")
+                "({skipped} already done), {}, {}",
+                plural(n_structures, "structure", "structures"),
+                failures(failed, failed_structures)
             ));
             return;
         }
@@ -352,11 +379,10 @@ pub fn run_cases(
             let per_min = 60.0 * done as f64 / started.elapsed().as_secs_f64().max(1e-9);
             let eta = (total - done) as f64 * 60.0 / per_min.max(1e-9);
             eprintln!(
-                "[{}] {done}/{total} cases done ({} failed, {} already done), {}, {:.0} cases/min, ETA {:.0} s",
+                "[{}] {done}/{total} cases done ({skipped} already done), {}, {}, {:.0} cases/min, ETA {:.0} s",
                 clock(),
-                failed,
-                skipped,
                 plural(n_structures, "structure", "structures"),
+                failures(failed, failed_structures),
                 per_min,
                 eta
             );
@@ -378,7 +404,7 @@ pub fn run_cases(
         );
         return Err(stop.into());
     }
-    if write_summary {
+    if let Some(notes) = summary_notes {
         let reports: Vec<_> = ids
             .iter()
             .filter_map(|id| {
@@ -386,7 +412,8 @@ pub fn run_cases(
                 destair::job::summary::read_case_rows(&path).ok()
             })
             .collect();
-        let summary = destair::job::summary::summarize(reports, Some(&ids));
+        let mut summary = destair::job::summary::summarize(reports, Some(&ids));
+        notes.apply(&mut summary);
         if let Err(e) = destair::job::summary::write_summary(&plan.output_root, &summary) {
             return Err(CasesFailed(format!(
                 "cannot write the cohort summary in {}: {e}",

@@ -1,7 +1,8 @@
 //! `destair smooth`: one mesh through one of the papers' smoothers.
 
-use super::{read_input, refuse_overwriting_inputs, ContextArgs, UsageError};
+use super::{read_input, refuse_overwriting_inputs, ContextArgs, Rejected, UsageError};
 use destair::io::ReadOptions;
+use destair::report::inspect::describe_voxel_size;
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
@@ -50,6 +51,9 @@ pub struct Args {
     /// Allow the output to replace the input file.
     #[arg(long)]
     force: bool,
+    /// Refuse the result if a vertex moved further than this many voxel diagonals (diverged).
+    #[arg(long, default_value_t = destair::smooth::DEFAULT_MAX_DISPLACEMENT_VOXELS)]
+    max_displacement_voxels: f32,
     #[command(flatten)]
     ctx: ContextArgs,
 }
@@ -72,6 +76,7 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         annotate,
         staircase,
         force,
+        max_displacement_voxels,
         ctx,
     } = args;
     ctx.check()?;
@@ -83,23 +88,6 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         destair::smooth::check_iterations(n)
             .map_err(|m| UsageError(format!("--iterations: {m}")))?;
     }
-    let loaded = read_input(&input, &ReadOptions::default())?;
-    let mesh = &loaded.mesh;
-    let topology = destair::Topology::build(mesh);
-    let voxel = match (voxel, method.needs_voxel()) {
-        (Some(v), _) => v,
-        (None, false) => [1.0; 3],
-        (None, true) => {
-            let est = destair::analysis::voxel_size(mesh, &topology);
-            let s = est.spacing().ok_or_else(|| {
-                UsageError(format!(
-                    "{}: cannot reconstruct the voxel size from the mesh ({est:?}); pass --voxel X,Y,Z",
-                    input.display()
-                ))
-            })?;
-            s.map(|x| x as f32)
-        }
-    };
     let params = destair::smooth::MethodParams {
         lambda,
         mu,
@@ -107,8 +95,71 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         beta,
         threshold,
     };
+    method.check(&params).map_err(UsageError)?;
+    if !(max_displacement_voxels.is_finite() && max_displacement_voxels > 0.0) {
+        return Err(
+            UsageError("--max-displacement-voxels must be a positive number".into()).into(),
+        );
+    }
+    let format = match destair::io::extension(&output).as_deref() {
+        Some("ply") => destair::io::OutputFormat::Ply,
+        Some("stl") => destair::io::OutputFormat::Stl,
+        _ => {
+            return Err(UsageError(format!(
+                "{}: the output must end in .ply or .stl",
+                output.display()
+            ))
+            .into())
+        }
+    };
+    if annotate && format == destair::io::OutputFormat::Stl {
+        return Err(UsageError(
+            "--annotate adds vertex properties, which STL cannot hold: write a .ply output".into(),
+        )
+        .into());
+    }
+    let folder = match output.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => std::path::Path::new("."),
+    };
+    if !folder.is_dir() {
+        return Err(UsageError(format!(
+            "{}: the output folder does not exist",
+            folder.display()
+        ))
+        .into());
+    }
+    let loaded = read_input(&input, &ReadOptions::default())?;
+    let mesh = &loaded.mesh;
+    let topology = destair::Topology::build(mesh);
+    let estimate = destair::analysis::voxel_size(mesh, &topology);
+    let voxel = match (voxel, method.needs_voxel()) {
+        (Some(v), needs) => {
+            if needs && estimate.is_irregular() {
+                eprintln!(
+                    "warning: {}: --voxel is used, but the voxel size is {}; {} constrains along grid axes that this mesh may not follow",
+                    input.display(),
+                    describe_voxel_size(&estimate),
+                    method.name()
+                );
+            }
+            Some(v)
+        }
+        (None, false) => estimate.spacing().map(|s| s.map(|x| x as f32)),
+        (None, true) => {
+            let s = estimate.spacing().ok_or_else(|| {
+                UsageError(format!(
+                    "{}: {} needs the voxel size, which is {}; pass --voxel X,Y,Z",
+                    input.display(),
+                    method.name(),
+                    describe_voxel_size(&estimate)
+                ))
+            })?;
+            Some(s.map(|x| x as f32))
+        }
+    };
     let kind = method;
-    let method = kind.build(&params, voxel);
+    let method = kind.build(&params, voxel.unwrap_or([1.0; 3]));
     let iterations = iterations.unwrap_or(kind.default_iterations());
     let context_on = staircase || !ctx.references.is_empty();
     let weights = match weights {
@@ -148,19 +199,21 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     let started = std::time::Instant::now();
     let (positions, stats) = smooth(mesh, &topology, &method, iterations, &weights, &fixed);
     let seconds = started.elapsed().as_secs_f64();
+    destair::smooth::check_result(
+        mesh.positions(),
+        &positions,
+        max_displacement_voxels,
+        destair::smooth::displacement_unit(mesh, &topology, voxel),
+    )
+    .map_err(|m| Rejected(format!("{}: {m}; nothing written", input.display())))?;
     let mut smoothed = mesh.clone();
     smoothed.positions_mut().copy_from_slice(&positions);
     let lengths: Vec<f32> = destair::metrics::displacements(mesh.positions(), &positions)
         .into_iter()
         .map(|d| d as f32)
         .collect();
-    match output
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase)
-        .as_deref()
-    {
-        Some("ply") => {
+    match format {
+        destair::io::OutputFormat::Ply => {
             let props: Vec<(&str, &[f32])> = if annotate {
                 vec![("weight", weights.as_slice()), ("displacement", &lengths)]
             } else {
@@ -168,13 +221,8 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
             };
             destair::io::ply::write_ply(&output, &smoothed, &loaded.meta, &props)?
         }
-        Some("stl") => destair::io::stl::write_stl(&output, &smoothed, &loaded.meta)?,
-        _ => {
-            return Err(UsageError(format!(
-                "{}: output must end in .ply or .stl",
-                output.display()
-            ))
-            .into())
+        destair::io::OutputFormat::Stl => {
+            destair::io::stl::write_stl(&output, &smoothed, &loaded.meta)?
         }
     }
     println!(

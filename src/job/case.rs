@@ -81,14 +81,14 @@ pub fn load_case(plan: &Plan, input: CaseInput) -> LoadedCase {
                     file,
                     bytes,
                     blake3,
-                    mesh: mesh.map_err(|e| format!("{}: {e}", path.display())),
+                    mesh: mesh.map_err(|e| format!("{}: {e}", plan.display(path))),
                 },
                 Err(e) => LoadedFile {
                     structure: structure.clone(),
                     file,
                     bytes: 0,
                     blake3: String::new(),
-                    mesh: Err(format!("{}: cannot read: {e}", path.display())),
+                    mesh: Err(format!("{}: cannot read: {e}", plan.display(path))),
                 },
             }
         })
@@ -148,7 +148,14 @@ pub fn process_case(plan: &Plan, case: LoadedCase) -> CaseOutput {
     let mut files = Vec::new();
     let mut structures = Vec::new();
     let mut timings = serde_json::Map::new();
-    for f in &case.files {
+    // A case that cannot be processed as listed (unreadable folder, two files for a structure)
+    // fails as a whole, without computing anything.
+    let inputs: &[LoadedFile] = if case.input.errors.is_empty() {
+        &case.files
+    } else {
+        &[]
+    };
+    for f in inputs {
         let t0 = Instant::now();
         let settings = plan.settings_for(&f.structure);
         let mut report = StructureReport {
@@ -258,16 +265,25 @@ fn process_structure(
         return encode(plan, stem, mesh, loaded, &[]);
     }
     let topology = Topology::build(mesh);
+    let estimate = crate::analysis::voxel_size(mesh, &topology);
     let voxel = match settings.voxel {
-        Some(v) => Some(v),
-        None => crate::analysis::voxel_size(mesh, &topology)
-            .spacing()
-            .map(|s| s.map(|x| x as f32)),
+        Some(v) => {
+            if settings.method.needs_voxel() && estimate.is_irregular() {
+                report.warnings.push(format!(
+                    "the configured voxel size is used, but the mesh's voxel size is {}; {} constrains along grid axes this mesh may not follow",
+                    crate::report::inspect::describe_voxel_size(&estimate),
+                    settings.method.name()
+                ));
+            }
+            Some(v)
+        }
+        None => estimate.spacing().map(|s| s.map(|x| x as f32)),
     };
     if settings.method.needs_voxel() && voxel.is_none() {
         return Err(format!(
-            "method {:?} needs the voxel size, which cannot be reconstructed from this mesh; set `voxel` in the config",
-            settings.method
+            "method {} needs the voxel size, which is {}; set `voxel` in the config",
+            settings.method.name(),
+            crate::report::inspect::describe_voxel_size(&estimate)
         ));
     }
     let method = settings
@@ -297,6 +313,15 @@ fn process_structure(
         &ctx.weights,
         &fixed,
     );
+    report.context = Some(context_summary(&ctx, mesh.n_vertices()));
+    report.method = Some(method);
+    report.smooth = Some(stats);
+    crate::smooth::check_result(
+        mesh.positions(),
+        &positions,
+        settings.max_displacement_voxels,
+        crate::smooth::displacement_unit(mesh, &topology, voxel),
+    )?;
     let mut smoothed = mesh.clone();
     smoothed.positions_mut().copy_from_slice(&positions);
     let named_refs: Vec<(&str, &Mesh, &TriangleGrid)> = reference_meshes
@@ -310,9 +335,6 @@ fn process_structure(
         &named_refs,
         voxel.map(|v| v.map(f64::from)),
     );
-    report.context = Some(context_summary(&ctx, mesh.n_vertices()));
-    report.method = Some(method);
-    report.smooth = Some(stats);
     report.metrics = Some(metrics);
     let displacement: Vec<f32> = crate::metrics::displacements(mesh.positions(), &positions)
         .into_iter()

@@ -43,6 +43,9 @@ pub struct InputConfig {
     /// Globs on file names that select meshes (e.g. "*_seg.stl"); when given, they replace
     /// `extensions`. The structure name is still the file stem.
     pub patterns: Option<Vec<String>>,
+    /// Which file to take when a structure has several (`tumor.ply`, `tumor.stl`): the first
+    /// extension in this list. Without it such a case fails.
+    pub extension_order: Option<Vec<String>>,
 }
 
 fn default_extensions() -> Vec<String> {
@@ -121,6 +124,8 @@ pub struct Settings {
     pub move_boundary: Option<bool>,
     /// Copy the structure unchanged (it can still be a reference).
     pub skip: Option<bool>,
+    /// Fail a structure whose smoothing moved a vertex further than this many voxel diagonals.
+    pub max_displacement_voxels: Option<f32>,
 }
 
 /// One `[[structure]]` table: settings for structures whose name matches `pattern`.

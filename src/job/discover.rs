@@ -19,6 +19,9 @@ pub struct CaseInput {
     /// Why the case cannot be processed (its folder cannot be read); such a case fails.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub errors: Vec<String>,
+    /// Structures with more than one file, as "name (file, file)".
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub duplicates: Vec<String>,
 }
 
 /// The cases of a plan, and what could not be read while looking for them.
@@ -26,6 +29,16 @@ pub struct CaseInput {
 pub struct Discovery {
     pub cases: Vec<CaseInput>,
     pub warnings: Vec<String>,
+    /// Folders that look like cases but hold no mesh (with case_depth: every folder at that
+    /// depth; without: folders with files but no subfolders), with the reason.
+    pub skipped_folders: Vec<String>,
+}
+
+/// What a folder directly holds.
+struct Listing {
+    meshes: Vec<PathBuf>,
+    n_subfolders: usize,
+    n_other_files: usize,
 }
 
 fn is_mesh(plan: &Plan, path: &Path) -> bool {
@@ -41,13 +54,14 @@ fn is_mesh(plan: &Plan, path: &Path) -> bool {
         .is_some_and(|e| plan.extensions.iter().any(|x| x.eq_ignore_ascii_case(e)))
 }
 
-/// Mesh files directly in `dir`, sorted by name; an unreadable folder is an error.
-fn case_meshes(
-    plan: &Plan,
-    dir: &Path,
-    warnings: &mut Vec<String>,
-) -> Result<Vec<PathBuf>, String> {
-    let mut files = Vec::new();
+/// Mesh files directly in `dir`, sorted by name, and what else is there; an unreadable folder
+/// is an error.
+fn case_meshes(plan: &Plan, dir: &Path, warnings: &mut Vec<String>) -> Result<Listing, String> {
+    let mut listing = Listing {
+        meshes: Vec::new(),
+        n_subfolders: 0,
+        n_other_files: 0,
+    };
     for entry in walkdir::WalkDir::new(dir)
         .min_depth(0)
         .max_depth(1)
@@ -55,22 +69,24 @@ fn case_meshes(
         .sort_by_file_name()
     {
         match entry {
-            Ok(e) if e.depth() == 1 && e.file_type().is_file() && is_mesh(plan, e.path()) => {
-                files.push(e.path().to_path_buf())
+            Ok(e) if e.depth() == 0 => {}
+            Ok(e) if e.file_type().is_file() && is_mesh(plan, e.path()) => {
+                listing.meshes.push(e.path().to_path_buf())
             }
-            Ok(_) => {}
+            Ok(e) if e.file_type().is_dir() => listing.n_subfolders += 1,
+            Ok(_) => listing.n_other_files += 1,
             // The folder itself cannot be listed: the case cannot be processed.
             Err(e) if e.depth() == 0 || e.path() == Some(dir) => {
                 return Err(format!(
                     "cannot read the case folder {}: {}",
-                    dir.display(),
+                    plan.display(dir),
                     io_reason(&e)
                 ))
             }
-            Err(e) => warnings.push(format!("{}: {e}", dir.display())),
+            Err(e) => warnings.push(format!("{}: {e}", plan.display(dir))),
         }
     }
-    Ok(files)
+    Ok(listing)
 }
 
 /// The OS reason of a walk error, without walkdir's repetition of the path.
@@ -79,42 +95,87 @@ fn io_reason(e: &walkdir::Error) -> String {
         .map_or_else(|| e.to_string(), |io| io.to_string())
 }
 
-/// The case in `dir` with the given id, or `None` if the folder holds no meshes.
+/// The case in `dir` with the given id, or `None` if the folder holds no meshes. Two files for
+/// one structure (`tumor.ply`, `tumor.stl`) fail the case, unless `[input] extension_order`
+/// says which to take.
 pub fn case_at(
     plan: &Plan,
     dir: &Path,
     id: String,
     warnings: &mut Vec<String>,
 ) -> Option<CaseInput> {
-    let files = match case_meshes(plan, dir, warnings) {
-        Ok(files) => files,
-        Err(error) => return Some(unreadable_case(dir, id, error)),
+    case_listing(plan, dir, id, warnings).0
+}
+
+/// [`case_at`] with the folder's listing, for telling skipped folders apart.
+fn case_listing(
+    plan: &Plan,
+    dir: &Path,
+    id: String,
+    warnings: &mut Vec<String>,
+) -> (Option<CaseInput>, Option<Listing>) {
+    let listing = match case_meshes(plan, dir, warnings) {
+        Ok(listing) => listing,
+        Err(error) => return (Some(unreadable_case(dir, id, error)), None),
     };
-    if files.is_empty() {
-        return None;
+    if listing.meshes.is_empty() {
+        return (None, Some(listing));
     }
-    let mut meshes: Vec<(String, PathBuf)> = Vec::new();
-    let mut problems = Vec::new();
-    for f in files {
+    let mut by_name: std::collections::BTreeMap<String, Vec<PathBuf>> = Default::default();
+    for f in &listing.meshes {
         let name = f
             .file_stem()
             .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
-        if meshes.iter().any(|(n, _)| *n == name) {
-            problems.push(format!(
-                "two meshes for structure {name:?}: {} is ignored",
-                f.display()
-            ));
-            continue;
-        }
-        meshes.push((name, f));
+        by_name.entry(name).or_default().push(f.clone());
     }
-    Some(CaseInput {
+    let mut meshes = Vec::new();
+    let mut problems = Vec::new();
+    let mut errors = Vec::new();
+    let mut duplicates = Vec::new();
+    for (name, mut files) in by_name {
+        if files.len() > 1 {
+            let names: Vec<String> = files
+                .iter()
+                .map(|f| {
+                    f.file_name()
+                        .unwrap_or_default()
+                        .to_string_lossy()
+                        .into_owned()
+                })
+                .collect();
+            duplicates.push(format!("{name} ({})", names.join(", ")));
+            match &plan.extension_order {
+                Some(order) => {
+                    let rank = |f: &PathBuf| {
+                        let ext = crate::io::extension(f).unwrap_or_default();
+                        order.iter().position(|o| *o == ext).unwrap_or(order.len())
+                    };
+                    files.sort_by_key(rank);
+                    problems.push(format!(
+                        "structure {name:?} has {} files ({}); {} is used ([input] extension_order)",
+                        files.len(),
+                        names.join(", "),
+                        files[0].file_name().unwrap_or_default().to_string_lossy()
+                    ));
+                }
+                None => errors.push(format!(
+                    "structure {name:?} has {} files ({}): keep one, or set [input] extension_order to choose",
+                    files.len(),
+                    names.join(", ")
+                )),
+            }
+        }
+        meshes.push((name, files.swap_remove(0)));
+    }
+    let case = CaseInput {
         id,
         dir: dir.to_path_buf(),
         meshes,
         problems,
-        errors: Vec::new(),
-    })
+        errors,
+        duplicates,
+    };
+    (Some(case), None)
 }
 
 /// A case whose folder cannot be read: it fails with the reason, rather than vanishing.
@@ -125,6 +186,7 @@ fn unreadable_case(dir: &Path, id: String, error: String) -> CaseInput {
         meshes: Vec::new(),
         problems: Vec::new(),
         errors: vec![error],
+        duplicates: Vec::new(),
     }
 }
 
@@ -149,9 +211,8 @@ pub fn discover(plan: &Plan) -> Discovery {
     let mut seen = std::collections::BTreeSet::new();
     let output_root = super::paths::canonical(&plan.output_root);
     for root in &plan.roots {
+        // A missing root is an error of the configuration (see `review`).
         if !root.is_dir() {
-            out.warnings
-                .push(format!("{}: input root is not a folder", root.display()));
             continue;
         }
         let mut walker = walkdir::WalkDir::new(root)
@@ -173,11 +234,24 @@ pub fn discover(plan: &Plan) -> Discovery {
             let (dir, case) = match entry {
                 Ok(e) if e.file_type().is_dir() => {
                     let id = case_id(root, e.path());
-                    let Some(case) = case_at(plan, e.path(), id, &mut out.warnings) else {
-                        if plan.case_depth.is_some() {
-                            out.warnings.push(format!(
-                                "{}: case folder holds no meshes",
-                                e.path().display()
+                    let (case, listing) = case_listing(plan, e.path(), id, &mut out.warnings);
+                    let Some(case) = case else {
+                        // A folder that should be a case, or a leaf folder with files: say so.
+                        let what = match listing {
+                            Some(l)
+                                if l.n_other_files > 0
+                                    && (plan.case_depth.is_some() || l.n_subfolders == 0) =>
+                            {
+                                Some(format!("{} files, none of them a mesh", l.n_other_files))
+                            }
+                            Some(_) if plan.case_depth.is_some() => Some("empty".to_string()),
+                            _ => None,
+                        };
+                        if let Some(what) = what {
+                            out.skipped_folders.push(format!(
+                                "{}: {what} ({})",
+                                plan.display(e.path()),
+                                plan.mesh_selection()
                             ));
                         }
                         continue;
@@ -193,7 +267,7 @@ pub fn discover(plan: &Plan) -> Discovery {
                         Some(d) if plan.case_depth.is_none() && d.is_dir() => {
                             let error = format!(
                                 "cannot read the folder {}: {}",
-                                d.display(),
+                                plan.display(&d),
                                 io_reason(&e)
                             );
                             let case = unreadable_case(&d, case_id(root, &d), error);

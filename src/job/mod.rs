@@ -9,6 +9,7 @@ pub mod outputs;
 pub mod paths;
 pub mod pipeline;
 pub mod plan;
+pub mod review;
 pub mod summary;
 
 pub use config::{Config, ConfigError};

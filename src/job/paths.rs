@@ -51,6 +51,31 @@ pub fn canonical(path: &Path) -> PathBuf {
     }
 }
 
+/// `path` relative to `base` (both made canonical), with `..` where it lies outside; `path`
+/// itself when they share nothing (another drive).
+pub fn relative_to(base: &Path, path: &Path) -> PathBuf {
+    let (b, p) = (canonical(base), canonical(path));
+    let common = b
+        .components()
+        .zip(p.components())
+        .take_while(|(x, y)| x == y)
+        .count();
+    if common == 0 {
+        return p;
+    }
+    let mut out = PathBuf::new();
+    for _ in b.components().skip(common) {
+        out.push("..");
+    }
+    for c in p.components().skip(common) {
+        out.push(c);
+    }
+    if out.as_os_str().is_empty() {
+        out.push(".");
+    }
+    out
+}
+
 /// Checks an output root against the input roots: it must not be a file, must not be an input
 /// root or hold one (its marker would hide the cases), and no input root may be an earlier
 /// run's output root.
@@ -142,6 +167,15 @@ mod tests {
             assert_eq!(canonical(&base.join(spelling)), cases, "{spelling}");
         }
         assert_eq!(canonical(&base.join("out/x/../y")), base.join("out/y"));
+        assert_eq!(
+            relative_to(&base, &base.join("cases/a")),
+            PathBuf::from("cases/a")
+        );
+        assert_eq!(
+            relative_to(&cases.join("a"), &base.join("out")),
+            PathBuf::from("../../out")
+        );
+        assert_eq!(relative_to(&base, &base), PathBuf::from("."));
         let roots = [base.join("cases")];
         assert!(check_output_root(&base.join("cases/../cases"), &roots).is_err());
         assert!(check_output_root(&base.join("link"), &roots).is_err());

@@ -48,6 +48,8 @@ pub enum Event {
         failed: bool,
         skipped: bool,
         structures: usize,
+        /// Structures that failed.
+        failed_structures: usize,
         /// The first error line of each failed structure (or of the case).
         errors: Vec<String>,
     },
@@ -297,6 +299,7 @@ pub fn run(
                     failed,
                     skipped: true,
                     structures,
+                    failed_structures: 0,
                     errors: Vec::new(),
                 });
             }
@@ -325,6 +328,12 @@ pub fn run(
                             failed,
                             skipped: false,
                             structures: out.report.structures.len(),
+                            failed_structures: out
+                                .report
+                                .structures
+                                .iter()
+                                .filter(|s| s.error.is_some())
+                                .count(),
                             errors: if failed {
                                 first_error_lines(&out)
                             } else {

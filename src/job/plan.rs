@@ -32,6 +32,8 @@ pub struct StructureSettings {
     pub move_boundary: bool,
     /// Copied unchanged (still usable as a reference).
     pub skip: bool,
+    /// A structure whose smoothing moved a vertex further than this many voxel diagonals fails.
+    pub max_displacement_voxels: f32,
 }
 
 /// The resolved configuration.
@@ -43,6 +45,8 @@ pub struct Plan {
     pub extensions: Vec<String>,
     /// File-name globs that select meshes instead of `extensions`, when given.
     pub patterns: Option<Vec<glob::Pattern>>,
+    /// Preference among a structure's files by extension (lower case), when given.
+    pub extension_order: Option<Vec<String>>,
     pub output_root: PathBuf,
     pub formats: Vec<OutputFormat>,
     pub annotate: bool,
@@ -53,6 +57,93 @@ pub struct Plan {
     pub read_mode: ReadMode,
     defaults: Settings,
     structures: Vec<(String, glob::Pattern, Settings)>,
+}
+
+impl StructureSettings {
+    /// The settings as a `[defaults]`-style TOML table: every key a config can set that this
+    /// method uses, with the value that will be used (defaults filled in).
+    pub fn config_view(&self) -> String {
+        use crate::smooth::Method;
+        use toml::Value;
+        // Through the shortest f32 text, so 0.1 prints as 0.1 and not 0.10000000149011612.
+        let f = |x: f32| Value::Float(x.to_string().parse().unwrap_or(x as f64));
+        let mut t: Vec<(&str, Value)> = Vec::new();
+        t.push(("method", Value::String(self.method.name().into())));
+        t.push(("iterations", Value::Integer(self.iterations as i64)));
+        match self
+            .method
+            .build(&self.params, self.voxel.unwrap_or([1.0; 3]))
+        {
+            Method::Laplace { lambda } | Method::Mcf { lambda } | Method::Npc { lambda, .. } => {
+                t.push(("lambda", f(lambda)));
+            }
+            Method::Hc {
+                lambda,
+                alpha,
+                beta,
+            } => {
+                t.push(("lambda", f(lambda)));
+                t.push(("alpha", f(alpha)));
+                t.push(("beta", f(beta)));
+            }
+            Method::Taubin { lambda, mu } => {
+                t.push(("lambda", f(lambda)));
+                t.push(("mu", f(mu)));
+            }
+            Method::CellSize {
+                lambda, threshold, ..
+            }
+            | Method::CellEdge {
+                lambda, threshold, ..
+            }
+            | Method::Diamond {
+                lambda, threshold, ..
+            } => {
+                t.push(("lambda", f(lambda)));
+                t.push(("threshold", f(threshold)));
+            }
+        }
+        if let Some(v) = self.voxel {
+            t.push(("voxel", Value::Array(v.iter().map(|&x| f(x)).collect())));
+        }
+        let c = &self.context;
+        t.push(("staircase", Value::Boolean(c.staircase)));
+        let axis = match c.axis {
+            AxisChoice::Auto => Value::String("auto".into()),
+            AxisChoice::Given(a) => Value::Array(a.iter().map(|&x| f(x)).collect()),
+        };
+        t.push(("axis", axis));
+        t.push(("tau", f(c.staircase_params.tau)));
+        t.push(("tau_max", f(c.staircase_params.tau_max_mm)));
+        t.push(("beta_min", f(c.staircase_params.beta_min)));
+        let caps = match c.caps {
+            CapPolicy::Preserve => "preserve",
+            CapPolicy::Smooth => "smooth",
+        };
+        t.push(("caps", Value::String(caps.into())));
+        let references = self.references.iter().map(|r| Value::String(r.clone()));
+        t.push(("references", Value::Array(references.collect())));
+        let scaling = match c.distance_scaling {
+            DistanceScaling::Linear => "linear".to_string(),
+            DistanceScaling::SafetyMargin { margin_mm } => format!("margin:{margin_mm}"),
+            DistanceScaling::Exponential { k } => format!("exp:{k}"),
+            DistanceScaling::Ramp { d0_mm, d1_mm } => format!("ramp:{d0_mm},{d1_mm}"),
+        };
+        t.push(("distance_scaling", Value::String(scaling)));
+        let combine = match c.combine {
+            Combine::Product => "product",
+            Combine::Min => "min",
+        };
+        t.push(("combine", Value::String(combine.into())));
+        t.push(("move_boundary", Value::Boolean(self.move_boundary)));
+        t.push(("skip", Value::Boolean(self.skip)));
+        t.push(("max_displacement_voxels", f(self.max_displacement_voxels)));
+        let mut text: String = t.iter().map(|(k, v)| format!("{k} = {v}\n")).collect();
+        if self.voxel.is_none() {
+            text.push_str("# voxel: reconstructed from each mesh where the method needs it\n");
+        }
+        text
+    }
 }
 
 /// Later settings override earlier ones key by key.
@@ -79,22 +170,28 @@ fn overlay(base: &Settings, over: &Settings) -> Settings {
         distance_scaling,
         combine,
         move_boundary,
-        skip
+        skip,
+        max_displacement_voxels
     )
 }
 
 /// Turns merged settings into effective ones, with defaults for what is unset.
 fn resolve(s: &Settings) -> Result<StructureSettings, String> {
     let method: MethodKind = s.method.as_deref().unwrap_or("hc").parse()?;
+    let r = |x: f32| crate::units::readable(x as f64);
     let unit = |name: &str, v: Option<f32>| -> Result<Option<f32>, String> {
         match v {
-            Some(x) if !(0.0..=1.0).contains(&x) => Err(format!("{name} = {x} must lie in [0, 1]")),
+            Some(x) if !(0.0..=1.0).contains(&x) => {
+                Err(format!("{name} = {} must lie in [0, 1]", r(x)))
+            }
             other => Ok(other),
         }
     };
     let positive = |name: &str, v: Option<f32>| -> Result<Option<f32>, String> {
         match v {
-            Some(x) if !(x.is_finite() && x > 0.0) => Err(format!("{name} = {x} must be positive")),
+            Some(x) if !(x.is_finite() && x > 0.0) => {
+                Err(format!("{name} = {} must be a positive number", r(x)))
+            }
             other => Ok(other),
         }
     };
@@ -120,7 +217,11 @@ fn resolve(s: &Settings) -> Result<StructureSettings, String> {
     };
     if let Some(v) = s.voxel {
         if v.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
-            return Err(format!("voxel = {v:?} must be three positive sizes in mm"));
+            let shown: Vec<String> = v.iter().map(|&x| r(x)).collect();
+            return Err(format!(
+                "voxel = [{}] must be three positive sizes in mm",
+                shown.join(", ")
+            ));
         }
     }
     let caps = match s.caps.as_deref() {
@@ -149,15 +250,17 @@ fn resolve(s: &Settings) -> Result<StructureSettings, String> {
         tau_max_mm: positive("tau_max", s.tau_max)?.unwrap_or(defaults.tau_max_mm),
         beta_min: unit("beta_min", s.beta_min)?.unwrap_or(defaults.beta_min),
     };
+    let params = MethodParams {
+        lambda: s.lambda,
+        mu: s.mu,
+        alpha: s.alpha,
+        beta: s.beta,
+        threshold: s.threshold,
+    };
+    method.check(&params)?;
     Ok(StructureSettings {
         method,
-        params: MethodParams {
-            lambda: s.lambda,
-            mu: s.mu,
-            alpha: s.alpha,
-            beta: s.beta,
-            threshold: positive("threshold", s.threshold)?,
-        },
+        params,
         iterations: match s.iterations {
             Some(n) => {
                 crate::smooth::check_iterations(n).map_err(|m| format!("iterations: {m}"))?
@@ -177,6 +280,8 @@ fn resolve(s: &Settings) -> Result<StructureSettings, String> {
         references: s.references.clone().unwrap_or_default(),
         move_boundary: s.move_boundary.unwrap_or(false),
         skip: s.skip.unwrap_or(false),
+        max_displacement_voxels: positive("max_displacement_voxels", s.max_displacement_voxels)?
+            .unwrap_or(crate::smooth::DEFAULT_MAX_DISPLACEMENT_VOXELS),
     })
 }
 
@@ -277,6 +382,11 @@ impl Plan {
                 .map(|e| e.to_ascii_lowercase())
                 .collect(),
             patterns,
+            extension_order: config.input.extension_order.as_ref().map(|l| {
+                l.iter()
+                    .map(|e| e.trim_start_matches('.').to_ascii_lowercase())
+                    .collect()
+            }),
             output_root: absolute(&config.output.root),
             formats,
             annotate: config.output.annotate,
@@ -299,6 +409,29 @@ impl Plan {
         // Absolute, so roots and output compare as paths whatever the working directory.
         let absolute = path.canonicalize().unwrap_or_else(|_| path.to_path_buf());
         Plan::new(config, &absolute)
+    }
+
+    /// A path as reports and messages show it: relative to the config file's folder, so reports
+    /// stay true when a cohort moves.
+    pub fn display(&self, path: &Path) -> String {
+        let base = self.config_path.parent().unwrap_or(Path::new(""));
+        super::paths::relative_to(base, path).display().to_string()
+    }
+
+    /// Which files count as meshes, in words.
+    pub fn mesh_selection(&self) -> String {
+        match &self.patterns {
+            Some(p) => format!(
+                "meshes are files matching {}",
+                p.iter().map(|p| p.as_str()).collect::<Vec<_>>().join(", ")
+            ),
+            None => format!("meshes are .{} files", self.extensions.join(", .")),
+        }
+    }
+
+    /// Names of the `[[structure]]` patterns, in file order.
+    pub fn structure_patterns(&self) -> impl Iterator<Item = &str> {
+        self.structures.iter().map(|(s, _, _)| s.as_str())
     }
 
     /// Effective settings for a structure: defaults, then every matching `[[structure]]` in order.

@@ -42,7 +42,38 @@ pub struct Summary {
     pub duplicates: Vec<String>,
     /// Reports of cases the config no longer finds (left out of the rows and counts).
     pub not_in_cohort: Vec<String>,
+    /// Folders that look like cases but hold no mesh, with the reason.
+    pub skipped_folders: Vec<String>,
+    /// Structures with several files, as "case: name (file, file)".
+    pub duplicate_structures: Vec<String>,
     pub rows: Vec<SummaryRow>,
+}
+
+/// What discovery found besides the cases, for the summary.
+#[derive(Debug, Clone, Default)]
+pub struct CohortNotes {
+    pub skipped_folders: Vec<String>,
+    pub duplicate_structures: Vec<String>,
+}
+
+impl CohortNotes {
+    /// The notes of a discovery.
+    pub fn of(found: &crate::job::Discovery) -> CohortNotes {
+        CohortNotes {
+            skipped_folders: found.skipped_folders.clone(),
+            duplicate_structures: found
+                .cases
+                .iter()
+                .flat_map(|c| c.duplicates.iter().map(move |d| format!("{}: {d}", c.id)))
+                .collect(),
+        }
+    }
+
+    /// Puts the notes into a summary.
+    pub fn apply(&self, summary: &mut Summary) {
+        summary.skipped_folders = self.skipped_folders.clone();
+        summary.duplicate_structures = self.duplicate_structures.clone();
+    }
 }
 
 /// Rows of one report.json.

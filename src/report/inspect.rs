@@ -339,7 +339,8 @@ impl InspectReport {
     }
 }
 
-fn describe_voxel_size(v: &VoxelSizeEstimate) -> String {
+/// The voxel-size reconstruction in words: the spacing, or why it cannot be had (Bade 2007 §3.2).
+pub fn describe_voxel_size(v: &VoxelSizeEstimate) -> String {
     if let Some([x, y, z]) = v.spacing() {
         return format!("{x:.4} x {y:.4} x {z:.4} mm");
     }

@@ -175,6 +175,71 @@ impl MethodKind {
         }
     }
 
+    /// Checks parameters against their meaningful ranges: lambda in (0, 1]; mu in [-1, 0) and,
+    /// for Taubin, below -lambda (Taubin 1995 needs 0 < lambda < -mu); HC's alpha and beta in
+    /// [0, 1]; a positive threshold (mm). Outside these the smoothers diverge or do nothing.
+    pub fn check(self, p: &MethodParams) -> Result<(), String> {
+        use crate::units::readable;
+        let r = |x: f32| readable(x as f64);
+        let defaults = self.build(&MethodParams::default(), [1.0; 3]);
+        let lambda = p.lambda.unwrap_or(match defaults {
+            Method::CellSize { lambda, .. }
+            | Method::CellEdge { lambda, .. }
+            | Method::Diamond { lambda, .. } => lambda,
+            _ => 0.5,
+        });
+        if !(lambda > 0.0 && lambda <= 1.0) {
+            return Err(format!("lambda = {} must lie in (0, 1]", r(lambda)));
+        }
+        // Keys a method does not use are still checked: a NaN or 1e30 is never meant.
+        if let Some(mu) = p.mu {
+            if !(-1.0..0.0).contains(&mu) {
+                return Err(format!("mu = {} must lie in [-1, 0)", r(mu)));
+            }
+        }
+        if self == MethodKind::Taubin {
+            let mu = p.mu.unwrap_or(-0.53);
+            if mu >= -lambda {
+                return Err(format!(
+                    "Taubin needs mu < -lambda: mu = {}, lambda = {} (set mu below {})",
+                    r(mu),
+                    r(lambda),
+                    r(-lambda)
+                ));
+            }
+        }
+        for (name, v) in [("alpha", p.alpha), ("beta", p.beta)] {
+            if let Some(x) = v {
+                if !(0.0..=1.0).contains(&x) {
+                    return Err(format!("{name} = {} must lie in [0, 1]", r(x)));
+                }
+            }
+        }
+        if let Some(t) = p.threshold {
+            if !(t.is_finite() && t > 0.0) {
+                return Err(format!(
+                    "threshold = {} must be a positive size in mm",
+                    r(t)
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The method's short name as used on the command line and in configs.
+    pub fn name(self) -> &'static str {
+        match self {
+            MethodKind::Laplace => "laplace",
+            MethodKind::Hc => "hc",
+            MethodKind::Taubin => "taubin",
+            MethodKind::Mcf => "mcf",
+            MethodKind::Npc => "npc",
+            MethodKind::CellSize => "cell-size",
+            MethodKind::CellEdge => "cell-edge",
+            MethodKind::Diamond => "diamond",
+        }
+    }
+
     /// Default iteration count (the maximum for relaxations).
     pub fn default_iterations(self) -> usize {
         if matches!(
@@ -365,4 +430,73 @@ pub(crate) fn max_step(a: &[[f32; 3]], b: &[[f32; 3]]) -> f32 {
         })
         .reduce(|| 0.0, f32::max)
         .sqrt()
+}
+
+/// Default bound on how far smoothing may move a vertex, in voxel diagonals: staircase removal
+/// moves vertices by a fraction of a voxel, so ten diagonals means the smoothing diverged.
+pub const DEFAULT_MAX_DISPLACEMENT_VOXELS: f32 = 10.0;
+
+/// The length (mm) that [`check_result`]'s bound is counted in: the voxel diagonal when the
+/// voxel size is known, else two mean edge lengths (marching-cubes edges are h/2 to h long).
+pub fn displacement_unit(
+    mesh: &Mesh,
+    topology: &Topology,
+    voxel: Option<[f32; 3]>,
+) -> (f64, &'static str) {
+    if let Some(v) = voxel {
+        let d = v.iter().map(|&x| (x as f64).powi(2)).sum::<f64>().sqrt();
+        return (d, "voxel diagonals");
+    }
+    let p = mesh.positions();
+    let edges = topology.edges();
+    let total: f64 = crate::parallel::deterministic_sum(edges.len(), |i| {
+        let [a, b] = edges[i];
+        let (a, b) = (p[a as usize], p[b as usize]);
+        (0..3)
+            .map(|k| ((a[k] - b[k]) as f64).powi(2))
+            .sum::<f64>()
+            .sqrt()
+    });
+    let mean = if edges.is_empty() {
+        1.0
+    } else {
+        total / edges.len() as f64
+    };
+    (
+        2.0 * mean,
+        "x 2 mean edge lengths (the voxel size is unknown)",
+    )
+}
+
+/// Rejects a smoothing result that cannot be trusted: a non-finite coordinate, or a vertex moved
+/// further than `max_units` times `unit` mm (see [`displacement_unit`]). The message names the
+/// first such vertex and what to change.
+pub fn check_result(
+    original: &[[f32; 3]],
+    smoothed: &[[f32; 3]],
+    max_units: f32,
+    (unit_mm, unit_name): (f64, &str),
+) -> Result<(), String> {
+    use crate::units::readable;
+    let limit = max_units as f64 * unit_mm;
+    for (v, (a, b)) in original.iter().zip(smoothed).enumerate() {
+        if b.iter().any(|c| !c.is_finite()) {
+            return Err(format!(
+                "smoothing diverged: vertex {v} has a non-finite coordinate; lower lambda or the iterations"
+            ));
+        }
+        let d = (0..3)
+            .map(|k| ((a[k] - b[k]) as f64).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        if d > limit {
+            return Err(format!(
+                "smoothing moved vertex {v} by {} mm, more than {} {unit_name} ({} mm): the result is not a smoothed surface; lower lambda or the iterations (or raise max_displacement_voxels)",
+                readable(d),
+                readable(max_units as f64),
+                readable(limit)
+            ));
+        }
+    }
+    Ok(())
 }

@@ -38,12 +38,13 @@ impl std::str::FromStr for DistanceScaling {
             Some(("margin", m)) => Ok(DistanceScaling::SafetyMargin {
                 margin_mm: number(m).ok_or_else(bad)?,
             }),
+            // k = 0 is 0/0 and |k| beyond 50 overflows e^k in f32.
             Some(("exp", k)) => Ok(DistanceScaling::Exponential {
                 k: k.trim()
                     .parse::<f32>()
                     .ok()
-                    .filter(|v| v.is_finite())
-                    .ok_or_else(bad)?,
+                    .filter(|v| v.is_finite() && *v != 0.0 && v.abs() <= 50.0)
+                    .ok_or_else(|| format!("exp:K needs 0 < |K| <= 50, got {s:?}"))?,
             }),
             Some(("ramp", r)) => {
                 let (a, b) = r.split_once(',').ok_or_else(bad)?;

@@ -104,3 +104,35 @@ pub fn snapshot(dir: &Path) -> BTreeMap<String, Vec<u8>> {
     }
     out
 }
+
+/// `destair smooth INPUT -o OUTPUT --method METHOD EXTRA...`.
+pub fn smooth(input: &Path, output: &Path, method: &str, extra: &[&str]) -> Output {
+    let mut args = vec![
+        "smooth",
+        input.to_str().unwrap(),
+        "-o",
+        output.to_str().unwrap(),
+        "--method",
+        method,
+    ];
+    args.extend_from_slice(extra);
+    destair(&args)
+}
+
+/// Peak resident memory (kB) and exit code of a child run, from wait4's rusage (which also
+/// reaps it).
+#[allow(clippy::zombie_processes)]
+pub fn peak_rss_kb(args: &[&str]) -> (i64, Option<i32>) {
+    let child = Command::new(env!("CARGO_BIN_EXE_destair"))
+        .args(args)
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut status = 0;
+    // SAFETY: rusage is plain data; wait4 reaps our own child and fills it in.
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    let pid = unsafe { libc::wait4(child.id() as i32, &mut status, 0, &mut usage) };
+    assert_eq!(pid, child.id() as i32);
+    let code = libc::WIFEXITED(status).then(|| libc::WEXITSTATUS(status));
+    (usage.ru_maxrss, code)
+}
