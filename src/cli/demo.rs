@@ -40,7 +40,7 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     lock.lock(&LockScope::Root, LockMode::Exclusive, Wait::No)?;
     let options = destair::job::pipeline::RunOptions {
         force: false,
-        protected: destair::job::paths::protected_inputs(&cases, &plan.roots),
+        protected: destair::job::discover::protected_inputs(&cases, &plan.roots),
     };
     super::run::run_cases(&plan, cases, &options, Some(&notes), &lock, &signals)?;
     println!("outputs and reports: {}", plan.output_root.display());

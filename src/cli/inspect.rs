@@ -41,6 +41,17 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     } = args;
     ctx.check()?;
     if let Some(path) = &export {
+        let folder = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => std::path::Path::new("."),
+        };
+        if !folder.is_dir() {
+            return Err(super::UsageError(format!(
+                "{}: the output folder does not exist",
+                folder.display()
+            ))
+            .into());
+        }
         let mut inputs = vec![mesh.as_path()];
         inputs.extend(ctx.references.iter().map(PathBuf::as_path));
         refuse_overwriting_inputs(path, &inputs, false)?;

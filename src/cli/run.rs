@@ -2,8 +2,9 @@
 //! locked, inputs protected, progress on stderr, signals and the exit policy.
 
 use super::{clock, load_plan, CasesFailed, Interrupted, UsageError};
+use destair::job::discover::protected_inputs;
 use destair::job::outputs::{orphan_case_dirs, prune_case_dir};
-use destair::job::paths::{check_output_root, protected_inputs};
+use destair::job::paths::check_output_root;
 use destair::job::pipeline::{Event, RunOptions};
 use destair::job::summary::CohortNotes;
 use destair::job::{CaseInput, Discovery, LockMode, LockScope, OutputLock, Plan, Shard, Wait};

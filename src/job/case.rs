@@ -162,7 +162,7 @@ pub fn process_case(plan: &Plan, case: LoadedCase) -> CaseOutput {
             name: f.structure.clone(),
             status: "failed".into(),
             error: None,
-            settings: settings.clone(),
+            settings: serde_json::to_value(&settings).unwrap_or_default(),
             n_vertices: 0,
             n_triangles: 0,
             method: None,

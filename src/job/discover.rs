@@ -3,6 +3,7 @@
 
 use super::lock::is_output_root;
 use super::plan::Plan;
+use crate::io::ProtectedFiles;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -300,6 +301,24 @@ pub fn discover(plan: &Plan) -> Discovery {
         }
     }
     out
+}
+
+/// The identities of every input file and case folder of `cases` (and of the roots).
+pub fn protected_inputs<'a>(
+    cases: impl IntoIterator<Item = &'a CaseInput>,
+    roots: &[PathBuf],
+) -> ProtectedFiles {
+    let mut p = ProtectedFiles::default();
+    for r in roots {
+        p.insert(r);
+    }
+    for c in cases {
+        p.insert(&c.dir);
+        for (_, f) in &c.meshes {
+            p.insert(f);
+        }
+    }
+    p
 }
 
 /// A share of the cases for one of `count` parallel runs.

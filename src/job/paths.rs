@@ -1,10 +1,8 @@
 //! Paths compared by what they are, not how they are spelled: `cases/../cases`, `./cases/` and
 //! a symlink to `cases` are one folder. Used to refuse output roots that would write over the
-//! inputs, and to collect the identities of a run's inputs as the last line of defence.
+//! inputs, and to name files in reports relative to the config.
 
-use super::discover::CaseInput;
 use super::lock::is_output_root;
-use crate::io::ProtectedFiles;
 use std::path::{Component, Path, PathBuf};
 
 /// The canonical form of a path that may not exist yet: the longest existing prefix resolved
@@ -123,24 +121,6 @@ pub fn check_case_output(case_out: &Path, case_dir: &Path) -> Result<(), String>
         ));
     }
     Ok(())
-}
-
-/// The identities of every input file and case folder of `cases` (and of the roots).
-pub fn protected_inputs<'a>(
-    cases: impl IntoIterator<Item = &'a CaseInput>,
-    roots: &[PathBuf],
-) -> ProtectedFiles {
-    let mut p = ProtectedFiles::default();
-    for r in roots {
-        p.insert(r);
-    }
-    for c in cases {
-        p.insert(&c.dir);
-        for (_, f) in &c.meshes {
-            p.insert(f);
-        }
-    }
-    p
 }
 
 #[cfg(test)]

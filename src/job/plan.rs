@@ -321,6 +321,12 @@ impl Plan {
         if formats.is_empty() {
             return Err(invalid("[output] formats is empty".into()));
         }
+        if config.output.annotate && !formats.contains(&OutputFormat::Ply) {
+            return Err(invalid(
+                "[output] annotate adds vertex properties, which only PLY holds: add \"ply\" to formats"
+                    .into(),
+            ));
+        }
         resolve(&config.defaults).map_err(|m| invalid(format!("[defaults]: {m}")))?;
         let mut structures = Vec::new();
         for (i, s) in config.structures.into_iter().enumerate() {
@@ -540,6 +546,10 @@ skip = false
             let err = plan(&format!("{base}{extra}")).unwrap_err().to_string();
             assert!(err.contains(needle), "{err}");
         }
+        let err = plan("[input]\nroots = [\"c\"]\n[output]\nroot = \"o\"\nformats = [\"stl\"]\nannotate = true\n")
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("only PLY"), "{err}");
         let err = plan("[input]\nroots = [\"c\"]\n[output]\nroot = \"o\"\nformats = [\"vtk\"]\n")
             .unwrap_err()
             .to_string();

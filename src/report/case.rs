@@ -2,7 +2,6 @@
 //! configuration give the same bytes) and a human-readable `report.md`. Timings, which differ
 //! run to run, go to `timings.json` instead.
 
-use crate::job::StructureSettings;
 use crate::report::compare::CompareReport;
 use crate::report::inspect::ContextSummary;
 use crate::smooth::{Method, SmoothStats};
@@ -29,7 +28,8 @@ pub struct StructureReport {
     /// "ok", "skipped" (copied unchanged) or "failed".
     pub status: String,
     pub error: Option<String>,
-    pub settings: StructureSettings,
+    /// The effective settings, as the runner resolved them (its `StructureSettings`).
+    pub settings: serde_json::Value,
     pub n_vertices: usize,
     pub n_triangles: usize,
     /// The smoother with every parameter as used (voxel size included).
