@@ -14,6 +14,7 @@ pub mod report;
 pub mod smooth;
 pub mod spatial;
 pub mod units;
+pub mod volume;
 pub mod weights;
 
 pub use mesh::{Mesh, Topology};

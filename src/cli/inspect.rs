@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Mesh file (.ply, .stl, .obj).
+    /// Mesh file (.ply, .stl, .obj) or label map (.nii, .nii.gz, .nrrd, .seg.nrrd, .nhdr).
     mesh: PathBuf,
     /// Print the report as JSON.
     #[arg(long)]
@@ -20,8 +20,17 @@ pub struct Args {
     /// Write the mesh with per-vertex `weight`, `staircase`, `cap` and distance properties (PLY).
     #[arg(long)]
     export: Option<PathBuf>,
+    /// World convention for a label map's coordinates.
+    #[arg(long, value_enum, default_value_t = SpaceArg::Lps)]
+    space: SpaceArg,
     #[command(flatten)]
     ctx: ContextArgs,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum SpaceArg {
+    Lps,
+    Ras,
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -37,9 +46,26 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         read_mode,
         context,
         export,
+        space,
         ctx,
     } = args;
     ctx.check()?;
+    if destair::volume::is_label_map(&mesh) {
+        let space = match space {
+            SpaceArg::Lps => destair::volume::Space::Lps,
+            SpaceArg::Ras => destair::volume::Space::Ras,
+        };
+        let map =
+            destair::volume::read_label_map(&mesh, space).map_err(super::LabelMapInputError)?;
+        let report =
+            destair::report::label_map::label_map_report(&mesh.display().to_string(), &map);
+        if json {
+            println!("{}", serde_json::to_string_pretty(&report)?);
+        } else {
+            print!("{}", report.to_text());
+        }
+        return Ok(());
+    }
     if let Some(path) = &export {
         let folder = match path.parent() {
             Some(p) if !p.as_os_str().is_empty() => p,

@@ -27,6 +27,11 @@ pub struct UsageError(pub String);
 #[error(transparent)]
 pub struct InputError(pub destair::io::ReadError);
 
+/// A label map that could not be read (exit 3).
+#[derive(Debug, thiserror::Error)]
+#[error(transparent)]
+pub struct LabelMapInputError(pub destair::volume::LabelMapError);
+
 /// A run that stopped early because of a signal (exit 128 + signal).
 #[derive(Debug, thiserror::Error)]
 #[error("stopped by signal {0}")]
@@ -52,6 +57,7 @@ pub fn exit_code(e: &anyhow::Error) -> u8 {
         2
     } else if e.downcast_ref::<CasesFailed>().is_some()
         || e.downcast_ref::<InputError>().is_some()
+        || e.downcast_ref::<LabelMapInputError>().is_some()
         || e.downcast_ref::<Rejected>().is_some()
     {
         3

@@ -1,0 +1,194 @@
+//! Grid geometry of a label map: the affine from voxel indices to world millimetres (spacing,
+//! origin and the full direction matrix, so oblique acquisitions stay oblique), and the
+//! world convention it is in (LPS, Slicer's and DICOM's; or RAS, NIfTI's).
+
+use serde::Serialize;
+
+/// Patient coordinate convention of world millimetres.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "UPPERCASE")]
+pub enum Space {
+    /// x to the patient's left, y posterior, z superior (DICOM, ITK, 3D Slicer since 4.11).
+    Lps,
+    /// x to the patient's right, y anterior, z superior (NIfTI's scanner space).
+    Ras,
+}
+
+impl Space {
+    /// The tag written into mesh headers (`SPACE=LPS`).
+    pub fn tag(self) -> &'static str {
+        match self {
+            Space::Lps => "LPS",
+            Space::Ras => "RAS",
+        }
+    }
+}
+
+/// Voxel index (i, j, k) to world mm: `world = origin + matrix * (i, j, k)`. The columns of
+/// `matrix` are the grid steps along i, j and k (spacing times direction).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Grid {
+    pub matrix: [[f64; 3]; 3],
+    pub origin: [f64; 3],
+    pub space: Space,
+}
+
+impl Grid {
+    /// An axis-aligned grid with the given spacing (mm) and origin, in `space`.
+    pub fn axis_aligned(spacing: [f64; 3], origin: [f64; 3], space: Space) -> Grid {
+        let mut matrix = [[0.0; 3]; 3];
+        for (k, s) in spacing.iter().enumerate() {
+            matrix[k][k] = *s;
+        }
+        Grid {
+            matrix,
+            origin,
+            space,
+        }
+    }
+
+    /// Checks what a grid must be: finite, every step longer than zero, not singular.
+    pub fn check(&self) -> Result<(), String> {
+        let finite = self
+            .matrix
+            .iter()
+            .flatten()
+            .chain(&self.origin)
+            .all(|x| x.is_finite());
+        if !finite {
+            return Err("the grid's directions or origin are not finite numbers".into());
+        }
+        let spacing = self.spacing();
+        if let Some(k) = spacing.iter().position(|s| s.is_nan() || *s <= 0.0) {
+            return Err(format!(
+                "the voxel spacing along axis {k} is {} mm; it must be positive",
+                crate::units::readable(spacing[k])
+            ));
+        }
+        // Singular when the unit directions span (almost) no volume.
+        let d = self.directions();
+        let det = det3(&d);
+        if det.abs() < 1e-6 {
+            return Err(format!(
+                "the direction matrix is singular (determinant {})",
+                crate::units::readable(det)
+            ));
+        }
+        Ok(())
+    }
+
+    /// Step length (mm) along each index axis.
+    pub fn spacing(&self) -> [f64; 3] {
+        let m = &self.matrix;
+        [0, 1, 2].map(|c| (m[0][c] * m[0][c] + m[1][c] * m[1][c] + m[2][c] * m[2][c]).sqrt())
+    }
+
+    /// Unit direction of each index axis, as the columns of a matrix.
+    pub fn directions(&self) -> [[f64; 3]; 3] {
+        let s = self.spacing();
+        let mut d = self.matrix;
+        for row in &mut d {
+            for c in 0..3 {
+                row[c] /= if s[c] > 0.0 { s[c] } else { 1.0 };
+            }
+        }
+        d
+    }
+
+    /// World position (mm) of a (possibly fractional) voxel index.
+    pub fn world(&self, ijk: [f64; 3]) -> [f64; 3] {
+        let m = &self.matrix;
+        [0, 1, 2].map(|r| self.origin[r] + m[r][0] * ijk[0] + m[r][1] * ijk[1] + m[r][2] * ijk[2])
+    }
+
+    /// The same grid in the other convention (x and y negated).
+    pub fn in_space(&self, space: Space) -> Grid {
+        if space == self.space {
+            return *self;
+        }
+        let mut g = *self;
+        for r in 0..2 {
+            g.origin[r] = -g.origin[r];
+            for c in 0..3 {
+                g.matrix[r][c] = -g.matrix[r][c];
+            }
+        }
+        g.space = space;
+        g
+    }
+
+    /// The index axis that runs closest to `axis` (a unit world direction), and the cosine.
+    pub fn nearest_index_axis(&self, axis: [f64; 3]) -> (usize, f64) {
+        let d = self.directions();
+        (0..3)
+            .map(|c| {
+                (
+                    c,
+                    (d[0][c] * axis[0] + d[1][c] * axis[1] + d[2][c] * axis[2]).abs(),
+                )
+            })
+            .fold((0, -1.0), |best, x| if x.1 > best.1 { x } else { best })
+    }
+
+    /// The slice normal: the world direction across the slices, taken as the index axis with
+    /// the largest spacing (the thick-slice axis), in unit length.
+    pub fn stack_axis(&self) -> [f64; 3] {
+        let s = self.spacing();
+        let k = (0..3).fold(2, |best, c| if s[c] > s[best] { c } else { best });
+        let d = self.directions();
+        [d[0][k], d[1][k], d[2][k]]
+    }
+
+    /// The 4 x 4 affine, row by row, for reports.
+    pub fn affine(&self) -> [[f64; 4]; 4] {
+        let m = &self.matrix;
+        let o = &self.origin;
+        [
+            [m[0][0], m[0][1], m[0][2], o[0]],
+            [m[1][0], m[1][1], m[1][2], o[1]],
+            [m[2][0], m[2][1], m[2][2], o[2]],
+            [0.0, 0.0, 0.0, 1.0],
+        ]
+    }
+}
+
+fn det3(m: &[[f64; 3]; 3]) -> f64 {
+    m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn oblique_grids_map_indices_and_convert_spaces() {
+        let (c, s) = (30f64.to_radians().cos(), 30f64.to_radians().sin());
+        let g = Grid {
+            matrix: [
+                [0.8 * c, -0.8 * s, 0.0],
+                [0.8 * s, 0.8 * c, 0.0],
+                [0.0, 0.0, 1.5],
+            ],
+            origin: [10.0, -20.0, 5.0],
+            space: Space::Ras,
+        };
+        g.check().unwrap();
+        let sp = g.spacing();
+        assert!((sp[0] - 0.8).abs() < 1e-12 && (sp[2] - 1.5).abs() < 1e-12);
+        let w = g.world([1.0, 0.0, 2.0]);
+        assert!((w[0] - (10.0 + 0.8 * c)).abs() < 1e-12 && (w[2] - 8.0).abs() < 1e-12);
+        let lps = g.in_space(Space::Lps);
+        let wl = lps.world([1.0, 0.0, 2.0]);
+        assert_eq!([wl[0], wl[1], wl[2]], [-w[0], -w[1], w[2]]);
+        assert_eq!(lps.in_space(Space::Ras), g);
+        assert_eq!(g.stack_axis(), [0.0, 0.0, 1.0]);
+        let mut bad = g;
+        bad.matrix[2][2] = 0.0;
+        assert!(bad.check().unwrap_err().contains("axis 2"));
+        let mut singular = g;
+        singular.matrix = [[1.0, 1.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 1.0]];
+        assert!(singular.check().unwrap_err().contains("singular"));
+    }
+}

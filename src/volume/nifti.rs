@@ -1,0 +1,345 @@
+//! NIfTI-1 label maps (`.nii`, `.nii.gz`). The 348-byte header is decoded by the `nifti` crate
+//! (both byte orders); the voxels are read here, from a memory map or a gzip stream, after the
+//! header's sizes are checked against the data. Geometry from the sform when its code is set,
+//! else the qform, else the plain pixdim scaling (with a warning); NIfTI's world is RAS.
+
+use super::{gunzip_exact, voxel_count, Grid, LabelMap, LabelVolume, Space, VoxelType};
+use std::path::Path;
+
+/// Size of the NIfTI-1 header (bytes).
+const HEADER: usize = 348;
+
+fn voxel_type(code: i16) -> Result<VoxelType, String> {
+    Ok(match code {
+        2 => VoxelType::U8,
+        256 => VoxelType::I8,
+        4 => VoxelType::I16,
+        512 => VoxelType::U16,
+        8 => VoxelType::I32,
+        768 => VoxelType::U32,
+        16 | 64 | 1536 => {
+            return Err(format!(
+                "datatype {code} is floating point; a label map holds integers (u8, i8, u16, i16, u32, i32)"
+            ))
+        }
+        other => return Err(format!("datatype {other} is not an integer label type")),
+    })
+}
+
+/// The grid of a NIfTI header (RAS), and a warning when it had to be guessed.
+fn grid_of(h: &nifti::NiftiHeader) -> (Grid, Option<String>) {
+    let p = |k: usize| h.pixdim[k] as f64;
+    if h.sform_code > 0 {
+        let r = [h.srow_x, h.srow_y, h.srow_z].map(|row| row.map(|x| x as f64));
+        let grid = Grid {
+            matrix: [
+                [r[0][0], r[0][1], r[0][2]],
+                [r[1][0], r[1][1], r[1][2]],
+                [r[2][0], r[2][1], r[2][2]],
+            ],
+            origin: [r[0][3], r[1][3], r[2][3]],
+            space: Space::Ras,
+        };
+        return (grid, None);
+    }
+    if h.qform_code > 0 {
+        let (b, c, d) = (h.quatern_b as f64, h.quatern_c as f64, h.quatern_d as f64);
+        let a = (1.0 - (b * b + c * c + d * d)).max(0.0).sqrt();
+        let rot = [
+            [
+                a * a + b * b - c * c - d * d,
+                2.0 * (b * c - a * d),
+                2.0 * (b * d + a * c),
+            ],
+            [
+                2.0 * (b * c + a * d),
+                a * a + c * c - b * b - d * d,
+                2.0 * (c * d - a * b),
+            ],
+            [
+                2.0 * (b * d - a * c),
+                2.0 * (c * d + a * b),
+                a * a + d * d - c * c - b * b,
+            ],
+        ];
+        let qfac = if h.pixdim[0] < 0.0 { -1.0 } else { 1.0 };
+        let scale = [p(1), p(2), qfac * p(3)];
+        let mut matrix = [[0.0; 3]; 3];
+        for r in 0..3 {
+            for col in 0..3 {
+                matrix[r][col] = rot[r][col] * scale[col];
+            }
+        }
+        let grid = Grid {
+            matrix,
+            origin: [h.quatern_x as f64, h.quatern_y as f64, h.quatern_z as f64],
+            space: Space::Ras,
+        };
+        return (grid, None);
+    }
+    (
+        Grid::axis_aligned([p(1), p(2), p(3)], [0.0; 3], Space::Ras),
+        Some("neither sform nor qform is set: the grid is pixdim-scaled at the origin, orientation unknown".into()),
+    )
+}
+
+/// Reads a NIfTI-1 label map.
+pub fn read(path: &Path) -> Result<LabelMap, String> {
+    let gz = path
+        .file_name()
+        .is_some_and(|n| n.to_string_lossy().to_ascii_lowercase().ends_with(".gz"));
+    let file = std::fs::File::open(path).map_err(|e| format!("cannot read: {e}"))?;
+    // SAFETY: read-only map, dropped before returning; see io::FileBytes for the NFS caveat.
+    let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| format!("cannot read: {e}"))?;
+    let bytes: &[u8] = &map;
+    if gz {
+        // Header first, from the start of the stream, to know how much data to expect.
+        use std::io::Read;
+        let mut head = Vec::new();
+        flate2::read::MultiGzDecoder::new(bytes)
+            .take(HEADER as u64)
+            .read_to_end(&mut head)
+            .map_err(|e| format!("not a gzip file, or a corrupt one ({e})"))?;
+        let (h, offset, n_bytes) = header(&head)?;
+        let all = gunzip_exact(bytes, offset + n_bytes)?;
+        decode(&h, &all[offset as usize..])
+    } else {
+        let (h, offset, n_bytes) = header(bytes)?;
+        let end = offset
+            .checked_add(n_bytes)
+            .filter(|&e| e <= bytes.len() as u64);
+        let Some(end) = end else {
+            return Err(format!(
+                "the header says {n_bytes} bytes of voxels from byte {offset}; the file has {} bytes",
+                bytes.len()
+            ));
+        };
+        decode(&h, &bytes[offset as usize..end as usize])
+    }
+}
+
+/// Parses and checks the header: (header, voxel offset, voxel bytes).
+fn header(bytes: &[u8]) -> Result<(nifti::NiftiHeader, u64, u64), String> {
+    if bytes.len() < HEADER {
+        return Err(format!(
+            "{} bytes is shorter than a NIfTI-1 header ({HEADER} bytes)",
+            bytes.len()
+        ));
+    }
+    let h = nifti::NiftiHeader::from_reader(&bytes[..HEADER])
+        .map_err(|e| format!("not a NIfTI-1 header: {e}"))?;
+    if h.sizeof_hdr != HEADER as i32 {
+        return Err(format!(
+            "header size is {}, not {HEADER}: not a NIfTI-1 file (NIfTI-2 is not read)",
+            h.sizeof_hdr
+        ));
+    }
+    if &h.magic != b"n+1\0" && &h.magic != b"ni1\0" {
+        return Err(format!("magic {:?} is not NIfTI-1's \"n+1\"", h.magic));
+    }
+    if &h.magic == b"ni1\0" {
+        return Err("a header-only .hdr/.img pair; give the single-file .nii".into());
+    }
+    let n_dims = h.dim[0];
+    if !(1..=7).contains(&n_dims) {
+        return Err(format!(
+            "dim[0] = {n_dims} is not a number of dimensions (1..7)"
+        ));
+    }
+    if (4..=n_dims as usize).any(|k| h.dim[k] > 1) {
+        return Err(format!(
+            "a {n_dims}-dimensional image ({:?}); a label map is 3D",
+            &h.dim[1..=n_dims as usize]
+        ));
+    }
+    let d = |k: usize| {
+        if k <= n_dims as usize {
+            h.dim[k] as u64
+        } else {
+            1
+        }
+    };
+    let n = voxel_count([d(1), d(2), d(3)])?;
+    let t = voxel_type(h.datatype)?;
+    if h.vox_offset < HEADER as f32 || !h.vox_offset.is_finite() {
+        return Err(format!(
+            "vox_offset {} lies inside the header",
+            h.vox_offset
+        ));
+    }
+    if h.scl_slope != 0.0 && (h.scl_slope != 1.0 || h.scl_inter != 0.0) {
+        return Err(format!(
+            "scl_slope {} and scl_inter {} rescale the voxels; labels must be stored as they are",
+            h.scl_slope, h.scl_inter
+        ));
+    }
+    Ok((h.clone(), h.vox_offset as u64, n * t.size() as u64))
+}
+
+fn decode(h: &nifti::NiftiHeader, data: &[u8]) -> Result<LabelMap, String> {
+    let n_dims = h.dim[0] as usize;
+    let d = |k: usize| if k <= n_dims { h.dim[k] as usize } else { 1 };
+    let dims = [d(1), d(2), d(3)];
+    let (grid, warning) = grid_of(h);
+    grid.check()?;
+    let t = voxel_type(h.datatype)?;
+    let big = h.endianness == nifti::Endianness::Big;
+    let volume = LabelVolume::from_values(dims, grid, t.values(data, big))?;
+    Ok(LabelMap {
+        layers: vec![volume],
+        segments: Vec::new(),
+        warnings: warning.into_iter().collect(),
+    })
+}
+
+/// Encodes a label volume as NIfTI-1 (u8 if every label value fits, else i16 or i32) with its
+/// grid as sform and qform (in RAS, as NIfTI requires); gzip-compressed when `gz`.
+pub fn encode(volume: &LabelVolume, gz: bool) -> Result<Vec<u8>, String> {
+    let values: Vec<i64> = volume
+        .voxels
+        .iter()
+        .map(|&v| {
+            if v == 0 {
+                0
+            } else {
+                volume.labels[v as usize - 1].value
+            }
+        })
+        .collect();
+    let (lo, hi) = values
+        .iter()
+        .fold((0i64, 0i64), |(a, b), &v| (a.min(v), b.max(v)));
+    let (code, bits, t) = if lo >= 0 && hi <= 255 {
+        (2i16, 8i16, VoxelType::U8)
+    } else if lo >= i16::MIN as i64 && hi <= i16::MAX as i64 {
+        (4, 16, VoxelType::I16)
+    } else {
+        (8, 32, VoxelType::I32)
+    };
+    let g = volume.grid.in_space(Space::Ras);
+    g.check()?;
+    let mut h = vec![0u8; HEADER + 4];
+    let put = |h: &mut Vec<u8>, at: usize, b: &[u8]| h[at..at + b.len()].copy_from_slice(b);
+    put(&mut h, 0, &(HEADER as i32).to_le_bytes());
+    h[38] = b'r';
+    let dims = [
+        3i16,
+        volume.dims[0] as i16,
+        volume.dims[1] as i16,
+        volume.dims[2] as i16,
+        1,
+        1,
+        1,
+        1,
+    ];
+    if volume.dims.iter().any(|&d| d > i16::MAX as usize) {
+        return Err("a dimension above 32767 voxels does not fit NIfTI-1".into());
+    }
+    for (k, d) in dims.iter().enumerate() {
+        put(&mut h, 40 + 2 * k, &d.to_le_bytes());
+    }
+    put(&mut h, 70, &code.to_le_bytes());
+    put(&mut h, 72, &bits.to_le_bytes());
+    let spacing = g.spacing();
+    let dir = g.directions();
+    let det = dir[0][0] * (dir[1][1] * dir[2][2] - dir[1][2] * dir[2][1])
+        - dir[0][1] * (dir[1][0] * dir[2][2] - dir[1][2] * dir[2][0])
+        + dir[0][2] * (dir[1][0] * dir[2][1] - dir[1][1] * dir[2][0]);
+    let qfac: f32 = if det < 0.0 { -1.0 } else { 1.0 };
+    let pixdim = [
+        qfac,
+        spacing[0] as f32,
+        spacing[1] as f32,
+        spacing[2] as f32,
+        1.0,
+        1.0,
+        1.0,
+        1.0,
+    ];
+    for (k, p) in pixdim.iter().enumerate() {
+        put(&mut h, 76 + 4 * k, &p.to_le_bytes());
+    }
+    put(&mut h, 108, &((HEADER + 4) as f32).to_le_bytes());
+    h[123] = 2; // xyzt_units: mm
+    put(&mut h, 148, b"destair label map");
+    put(&mut h, 252, &1i16.to_le_bytes()); // qform_code: scanner
+    put(&mut h, 254, &1i16.to_le_bytes()); // sform_code: scanner
+                                           // The qform quaternion of the rotation part (third column flipped when qfac is -1).
+    let mut r = dir;
+    if qfac < 0.0 {
+        for row in &mut r {
+            row[2] = -row[2];
+        }
+    }
+    let (b, c, d) = quaternion(&r);
+    for (k, q) in [b, c, d, g.origin[0], g.origin[1], g.origin[2]]
+        .iter()
+        .enumerate()
+    {
+        put(&mut h, 256 + 4 * k, &(*q as f32).to_le_bytes());
+    }
+    for row in 0..3 {
+        let srow = [
+            g.matrix[row][0],
+            g.matrix[row][1],
+            g.matrix[row][2],
+            g.origin[row],
+        ];
+        for (k, x) in srow.iter().enumerate() {
+            put(&mut h, 280 + 16 * row + 4 * k, &(*x as f32).to_le_bytes());
+        }
+    }
+    put(&mut h, 344, b"n+1\0");
+    let mut out = h;
+    out.reserve(values.len() * t.size());
+    for v in values {
+        match t {
+            VoxelType::U8 => out.push(v as u8),
+            VoxelType::I16 => out.extend_from_slice(&(v as i16).to_le_bytes()),
+            _ => out.extend_from_slice(&(v as i32).to_le_bytes()),
+        }
+    }
+    if !gz {
+        return Ok(out);
+    }
+    use std::io::Write;
+    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+    e.write_all(&out).map_err(|e| e.to_string())?;
+    e.finish().map_err(|e| e.to_string())
+}
+
+/// Quaternion (b, c, d) of a proper rotation matrix, with a >= 0 (NIfTI's convention).
+fn quaternion(r: &[[f64; 3]; 3]) -> (f64, f64, f64) {
+    let trace = r[0][0] + r[1][1] + r[2][2];
+    let (a, b, c, d);
+    if trace > 0.0 {
+        let s = 0.5 / (trace + 1.0).sqrt();
+        a = 0.25 / s;
+        b = (r[2][1] - r[1][2]) * s;
+        c = (r[0][2] - r[2][0]) * s;
+        d = (r[1][0] - r[0][1]) * s;
+    } else if r[0][0] > r[1][1] && r[0][0] > r[2][2] {
+        let s = 2.0 * (1.0 + r[0][0] - r[1][1] - r[2][2]).sqrt();
+        a = (r[2][1] - r[1][2]) / s;
+        b = 0.25 * s;
+        c = (r[0][1] + r[1][0]) / s;
+        d = (r[0][2] + r[2][0]) / s;
+    } else if r[1][1] > r[2][2] {
+        let s = 2.0 * (1.0 + r[1][1] - r[0][0] - r[2][2]).sqrt();
+        a = (r[0][2] - r[2][0]) / s;
+        b = (r[0][1] + r[1][0]) / s;
+        c = 0.25 * s;
+        d = (r[1][2] + r[2][1]) / s;
+    } else {
+        let s = 2.0 * (1.0 + r[2][2] - r[0][0] - r[1][1]).sqrt();
+        a = (r[1][0] - r[0][1]) / s;
+        b = (r[0][2] + r[2][0]) / s;
+        c = (r[1][2] + r[2][1]) / s;
+        d = 0.25 * s;
+    }
+    if a < 0.0 {
+        (-b, -c, -d)
+    } else {
+        (b, c, d)
+    }
+}

@@ -1,0 +1,347 @@
+//! Label maps in: NIfTI-1 and NRRD round trips with oblique, anisotropic grids in LPS and RAS,
+//! qform-only NIfTI, detached NRRD headers, Slicer segment names and layers, and bad headers
+//! (zero spacing, singular directions, sizes that do not match, truncated gzip, mutations),
+//! which give errors naming the file and never a panic.
+
+use destair::volume::{nifti, nrrd, read_label_map, Grid, LabelVolume, Segment, Space};
+use std::path::Path;
+
+/// A random oblique grid: a random rotation, anisotropic spacing, and an origin.
+fn random_grid(rng: &mut fastrand::Rng, space: Space) -> Grid {
+    let q: [f64; 4] = [
+        rng.f64() - 0.5,
+        rng.f64() - 0.5,
+        rng.f64() - 0.5,
+        rng.f64() - 0.5,
+    ];
+    let n = q.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let [a, b, c, d] = q.map(|x| x / n);
+    let rot = [
+        [
+            a * a + b * b - c * c - d * d,
+            2.0 * (b * c - a * d),
+            2.0 * (b * d + a * c),
+        ],
+        [
+            2.0 * (b * c + a * d),
+            a * a + c * c - b * b - d * d,
+            2.0 * (c * d - a * b),
+        ],
+        [
+            2.0 * (b * d - a * c),
+            2.0 * (c * d + a * b),
+            a * a + d * d - c * c - b * b,
+        ],
+    ];
+    let spacing = [0.3 + rng.f64(), 0.3 + rng.f64(), 1.0 + 3.0 * rng.f64()];
+    let mut matrix = [[0.0; 3]; 3];
+    for r in 0..3 {
+        for col in 0..3 {
+            matrix[r][col] = rot[r][col] * spacing[col];
+        }
+    }
+    let origin = [
+        100.0 * rng.f64() - 50.0,
+        100.0 * rng.f64() - 50.0,
+        100.0 * rng.f64() - 50.0,
+    ];
+    Grid {
+        matrix,
+        origin,
+        space,
+    }
+}
+
+fn random_volume(rng: &mut fastrand::Rng, space: Space) -> LabelVolume {
+    let dims = [rng.usize(2..12), rng.usize(2..12), rng.usize(2..9)];
+    let n = dims.iter().product::<usize>();
+    let values = [0i64, 0, 0, 1, 2, 3, 7, 300, -5];
+    let raw: Vec<i64> = (0..n).map(|_| values[rng.usize(..values.len())]).collect();
+    LabelVolume::from_values(dims, random_grid(rng, space), raw.into_iter()).unwrap()
+}
+
+fn assert_same_grid(a: &Grid, b: &Grid, tol: f64) {
+    assert_eq!(a.space, b.space);
+    for r in 0..3 {
+        assert!((a.origin[r] - b.origin[r]).abs() < tol, "{a:?} vs {b:?}");
+        for c in 0..3 {
+            assert!(
+                (a.matrix[r][c] - b.matrix[r][c]).abs() < tol,
+                "{a:?} vs {b:?}"
+            );
+        }
+    }
+}
+
+#[test]
+fn nifti_and_nrrd_round_trip_oblique_grids_in_either_space() {
+    let mut rng = fastrand::Rng::with_seed(3);
+    let dir = tempfile::tempdir().unwrap();
+    for round in 0..40 {
+        let space = if rng.bool() { Space::Lps } else { Space::Ras };
+        let v = random_volume(&mut rng, space);
+        let gz = rng.bool();
+        let files = [
+            (
+                format!("v{round}.nii{}", if gz { ".gz" } else { "" }),
+                nifti::encode(&v, gz).unwrap(),
+            ),
+            (
+                format!("v{round}.nrrd"),
+                nrrd::encode(std::slice::from_ref(&v), &[], gz).unwrap(),
+            ),
+        ];
+        for (name, bytes) in files {
+            let path = dir.path().join(&name);
+            std::fs::write(&path, &bytes).unwrap();
+            for want in [Space::Lps, Space::Ras] {
+                let map = read_label_map(&path, want).unwrap();
+                let got = &map.layers[0];
+                assert_eq!(got.dims, v.dims, "{name}");
+                assert_eq!(got.voxels, v.voxels, "{name}");
+                assert_eq!(got.labels, v.labels, "{name}");
+                // NIfTI stores f32: a few micrometres.
+                assert_same_grid(&got.grid, &v.grid.in_space(want), 1e-4);
+            }
+        }
+    }
+}
+
+#[test]
+fn qform_only_nifti_gives_the_same_grid_as_its_sform() {
+    let mut rng = fastrand::Rng::with_seed(5);
+    let dir = tempfile::tempdir().unwrap();
+    for round in 0..30 {
+        let v = random_volume(&mut rng, Space::Ras);
+        let mut bytes = nifti::encode(&v, false).unwrap();
+        bytes[254..256].copy_from_slice(&0i16.to_le_bytes()); // sform_code 0: qform only
+        let path = dir.path().join(format!("q{round}.nii"));
+        std::fs::write(&path, &bytes).unwrap();
+        let got = read_label_map(&path, Space::Ras).unwrap();
+        assert_same_grid(&got.layers[0].grid, &v.grid, 1e-4);
+        // Neither form: pixdim scaling with a warning.
+        bytes[252..254].copy_from_slice(&0i16.to_le_bytes());
+        std::fs::write(&path, &bytes).unwrap();
+        let got = read_label_map(&path, Space::Ras).unwrap();
+        assert!(got.warnings[0].contains("neither sform nor qform"));
+    }
+}
+
+#[test]
+fn slicer_segments_name_labels_and_layers_hold_overlaps() {
+    let dir = tempfile::tempdir().unwrap();
+    let g = Grid::axis_aligned([0.5, 0.5, 2.0], [1.0, 2.0, 3.0], Space::Lps);
+    let a = LabelVolume::from_values(
+        [3, 2, 2],
+        g,
+        [1i64, 1, 0, 2, 2, 0, 0, 0, 1, 1, 1, 0].into_iter(),
+    )
+    .unwrap();
+    let b = LabelVolume::from_values(
+        [3, 2, 2],
+        g,
+        [0i64, 3, 3, 0, 0, 0, 0, 0, 0, 0, 0, 3].into_iter(),
+    )
+    .unwrap();
+    let segments = [
+        Segment {
+            name: "tumor".into(),
+            value: 1,
+            layer: 0,
+        },
+        Segment {
+            name: "vena jugularis".into(),
+            value: 2,
+            layer: 0,
+        },
+        Segment {
+            name: "trachea".into(),
+            value: 3,
+            layer: 1,
+        },
+    ];
+    let path = dir.path().join("case.seg.nrrd");
+    std::fs::write(
+        &path,
+        nrrd::encode(&[a.clone(), b.clone()], &segments, true).unwrap(),
+    )
+    .unwrap();
+    let map = read_label_map(&path, Space::Lps).unwrap();
+    assert_eq!(map.layers.len(), 2);
+    assert_eq!(map.layers[0].voxels, a.voxels);
+    assert_eq!(map.layers[1].voxels, b.voxels);
+    let names: Vec<&str> = map
+        .layers
+        .iter()
+        .flat_map(|l| l.labels.iter().map(|x| x.name.as_str()))
+        .collect();
+    assert_eq!(names, ["tumor", "vena jugularis", "trachea"]);
+    assert_eq!(map.segments, segments);
+    // Slicer's own header text: as 3D Slicer 5 writes a one-layer segmentation.
+    let header = "NRRD0004\n# Complete NRRD file format specification at:\n# http://teem.sourceforge.net/nrrd/format.html\ntype: unsigned char\ndimension: 3\nspace: left-posterior-superior\nsizes: 2 2 1\nspace directions: (0.8,0,0) (0,0.8,0) (0,0,3)\nkinds: domain domain domain\nencoding: raw\nspace origin: (-10,-20,30)\nSegment0_Color:=0.5 0.68 0.5\nSegment0_ID:=Segment_1\nSegment0_LabelValue:=1\nSegment0_Layer:=0\nSegment0_Name:=liver\nSegment0_Tags:=Segmentation.Status:inprogress|\nSegmentation_MasterRepresentation:=Binary labelmap\n\n";
+    let mut bytes = header.as_bytes().to_vec();
+    bytes.extend([0u8, 1, 1, 0]);
+    std::fs::write(&path, &bytes).unwrap();
+    let map = read_label_map(&path, Space::Lps).unwrap();
+    assert_eq!(map.layers[0].labels[0].name, "liver");
+    assert_eq!(map.layers[0].labels[0].n_voxels, 2);
+    let w = map.layers[0].grid.world([1.0, 1.0, 0.0]);
+    assert_eq!(w, [-9.2, -19.2, 30.0]);
+}
+
+#[test]
+fn detached_nrrd_headers_read_their_data_file() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("v.raw"), [0u8, 0, 5, 5, 5, 0, 0, 0]).unwrap();
+    let nhdr = "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nspace: RAS\nspace directions: (1,0,0) (0,1,0) (0,0,2)\nencoding: raw\ndata file: v.raw\n";
+    let path = dir.path().join("v.nhdr");
+    std::fs::write(&path, nhdr).unwrap();
+    let map = read_label_map(&path, Space::Lps).unwrap();
+    assert_eq!(map.layers[0].labels[0].value, 5);
+    assert_eq!(map.layers[0].labels[0].n_voxels, 3);
+    // RAS read as LPS: x and y negated.
+    assert_eq!(map.layers[0].grid.world([1.0, 1.0, 1.0]), [-1.0, -1.0, 2.0]);
+}
+
+#[test]
+fn bad_headers_name_the_file_and_the_problem() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nspace: LPS\nspace directions: (1,0,0) (0,1,0) (0,0,2)\nencoding: raw\n\n";
+    let cases: [(&str, String, Vec<u8>); 8] = [
+        (
+            "zero spacing",
+            good.replace("(0,0,2)", "(0,0,0)"),
+            vec![0; 8],
+        ),
+        ("singular", good.replace("(0,1,0)", "(1,0,0)"), vec![0; 8]),
+        ("short data", good.to_string(), vec![0; 7]),
+        (
+            "lying sizes",
+            good.replace("sizes: 2 2 2", "sizes: 1000000 1000000 1000000"),
+            vec![0; 8],
+        ),
+        ("float", good.replace("uchar", "float"), vec![0; 32]),
+        ("gzip truncated", good.replace("raw", "gzip"), {
+            use std::io::Write;
+            let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+            e.write_all(&[1u8; 8]).unwrap();
+            let b = e.finish().unwrap();
+            b[..b.len() - 6].to_vec()
+        }),
+        (
+            "unknown space",
+            good.replace("LPS", "scanner-xyz"),
+            vec![0; 8],
+        ),
+        (
+            "2D",
+            good.replace("dimension: 3\nsizes: 2 2 2", "dimension: 2\nsizes: 2 2"),
+            vec![0; 4],
+        ),
+    ];
+    for (what, header, data) in cases {
+        let path = dir.path().join("bad.nrrd");
+        let mut bytes = header.into_bytes();
+        bytes.extend(data);
+        std::fs::write(&path, &bytes).unwrap();
+        let err = read_label_map(&path, Space::Lps).unwrap_err().to_string();
+        assert!(err.contains("bad.nrrd"), "{what}: {err}");
+        eprintln!("{what}: {err}");
+    }
+    // NIfTI: size mismatch, zero spacing, a 4D image, a truncated .nii.gz.
+    let v = LabelVolume::from_values(
+        [3, 3, 3],
+        Grid::axis_aligned([1.0, 1.0, 2.0], [0.0; 3], Space::Ras),
+        (0..27).map(|i| (i % 3) as i64),
+    )
+    .unwrap();
+    let bytes = nifti::encode(&v, false).unwrap();
+    let path = dir.path().join("bad.nii");
+    std::fs::write(&path, &bytes[..bytes.len() - 1]).unwrap();
+    assert!(read_label_map(&path, Space::Lps)
+        .unwrap_err()
+        .to_string()
+        .contains("the file has"));
+    let mut zero = bytes.clone();
+    for at in [280usize, 296, 312] {
+        zero[at..at + 12].fill(0); // every sform row's directions
+    }
+    std::fs::write(&path, &zero).unwrap();
+    let err = read_label_map(&path, Space::Lps).unwrap_err().to_string();
+    assert!(err.contains("spacing"), "{err}");
+    let gz = nifti::encode(&v, true).unwrap();
+    let path = dir.path().join("bad.nii.gz");
+    std::fs::write(&path, &gz[..gz.len() - 8]).unwrap();
+    assert!(read_label_map(&path, Space::Lps).is_err());
+}
+
+/// Truncations at every offset and random byte mutations: an error or a volume, never a panic.
+#[test]
+fn mutated_label_maps_never_panic() {
+    let mut rng = fastrand::Rng::with_seed(11);
+    let dir = tempfile::tempdir().unwrap();
+    let v = random_volume(&mut rng, Space::Lps);
+    for (name, bytes) in [
+        ("m.nii", nifti::encode(&v, false).unwrap()),
+        ("m.nii.gz", nifti::encode(&v, true).unwrap()),
+        (
+            "m.nrrd",
+            nrrd::encode(std::slice::from_ref(&v), &[], false).unwrap(),
+        ),
+        (
+            "m.seg.nrrd",
+            nrrd::encode(std::slice::from_ref(&v), &[], true).unwrap(),
+        ),
+    ] {
+        let path = dir.path().join(name);
+        for cut in (0..bytes.len()).step_by(7) {
+            std::fs::write(&path, &bytes[..cut]).unwrap();
+            let _ = read_label_map(&path, Space::Lps);
+        }
+        for _ in 0..300 {
+            let mut b = bytes.clone();
+            for _ in 0..rng.usize(1..4) {
+                let at = rng.usize(..b.len());
+                b[at] = rng.u8(..);
+            }
+            std::fs::write(&path, &b).unwrap();
+            let _ = read_label_map(&path, Space::Lps);
+        }
+    }
+    assert!(!Path::new(&dir.path().join("never")).exists());
+}
+
+#[test]
+fn inspect_shows_a_label_maps_grid_and_labels() {
+    let dir = tempfile::tempdir().unwrap();
+    let g = Grid::axis_aligned([0.5, 0.5, 2.0], [10.0, 20.0, 30.0], Space::Ras);
+    let v = LabelVolume::from_values([4, 4, 4], g, (0..64).map(|i| if i < 10 { 4 } else { 0 }))
+        .unwrap();
+    let path = dir.path().join("seg.nii.gz");
+    std::fs::write(&path, nifti::encode(&v, true).unwrap()).unwrap();
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_destair"))
+        .args(["inspect", path.to_str().unwrap(), "--json"])
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let json: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert_eq!(json["space"], "LPS");
+    assert_eq!(json["labels"][0]["value"], 4);
+    assert_eq!(json["labels"][0]["n_voxels"], 10);
+    assert!((json["labels"][0]["volume_mm3"].as_f64().unwrap() - 5.0).abs() < 1e-5);
+    // RAS origin (10, 20, 30) is (-10, -20, 30) in LPS.
+    assert!((json["origin_mm"][0].as_f64().unwrap() + 10.0).abs() < 1e-5);
+    assert_eq!(json["stack_axis"], serde_json::json!([0.0, 0.0, 1.0]));
+    let bad = dir.path().join("bad.nii");
+    std::fs::write(&bad, b"not a nifti").unwrap();
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_destair"))
+        .args(["inspect", bad.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert_eq!(run.status.code(), Some(3));
+    assert!(String::from_utf8_lossy(&run.stderr).contains("bad.nii: "));
+}
