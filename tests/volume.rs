@@ -345,3 +345,60 @@ fn inspect_shows_a_label_maps_grid_and_labels() {
     assert_eq!(run.status.code(), Some(3));
     assert!(String::from_utf8_lossy(&run.stderr).contains("bad.nii: "));
 }
+
+#[test]
+fn the_labelmap_neck_phantom_has_touching_structures_and_can_be_oblique() {
+    let dir = tempfile::tempdir().unwrap();
+    for (rot, sub) in [("0", "straight"), ("20", "oblique")] {
+        let out = dir.path().join(sub);
+        let run = std::process::Command::new(env!("CARGO_BIN_EXE_destair"))
+            .args([
+                "phantom",
+                "labelmap-neck",
+                "--rotate-x",
+                rot,
+                "--out",
+                out.to_str().unwrap(),
+            ])
+            .output()
+            .unwrap();
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let map = read_label_map(&out.join("segmentation.nii.gz"), Space::Lps).unwrap();
+        let v = &map.layers[0];
+        assert_eq!(v.dims, [160, 160, 20]);
+        let values: Vec<i64> = v.labels.iter().map(|l| l.value).collect();
+        assert_eq!(values, [1, 2, 3]);
+        assert!(v.labels.iter().all(|l| l.n_voxels > 500), "{:?}", v.labels);
+        // Tumor (1) and vein (2) share voxel faces.
+        let [nx, ny, nz] = v.dims;
+        let mut shared = 0;
+        for k in 0..nz {
+            for j in 0..ny {
+                for i in 0..nx - 1 {
+                    let (a, b) = (v.at(i, j, k), v.at(i + 1, j, k));
+                    shared += (a != b && a.min(b) == 1 && a.max(b) == 2) as usize;
+                }
+            }
+        }
+        assert!(shared > 20, "{sub}: {shared} shared faces");
+        let sp = v.grid.spacing();
+        assert!(
+            (sp[0] - 0.45).abs() < 1e-5 && (sp[2] - 3.0).abs() < 1e-5,
+            "{sp:?}"
+        );
+        let axis = v.grid.stack_axis();
+        let expected_z = if rot == "0" {
+            1.0
+        } else {
+            20f64.to_radians().cos()
+        };
+        assert!((axis[2].abs() - expected_z).abs() < 1e-5, "{sub}: {axis:?}");
+        let info: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(out.join("phantom.json")).unwrap()).unwrap();
+        assert_eq!(info["labels"][1]["name"], "vein");
+    }
+}

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 /// NAME is one of sphere-iso, sphere-aniso, sphere-aniso-1-16, -1-8, -1-4, -1-2, -top,
 /// sphere-smooth (and the same cut variants), cap-cylinder, neck, aneurysm; `big N`
-/// (about N triangles); or `cohort` (--cases N).
+/// (about N triangles); `cohort` (--cases N); or the label map `labelmap-neck`.
 #[derive(clap::Args)]
 pub struct Args {
     /// Which phantom.
@@ -56,6 +56,22 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
             BorderEnds::Capped
         },
     };
+    if destair::phantom::cases::LABEL_MAP_NAMES.contains(&name.as_str()) {
+        let (volume, names) = destair::phantom::cases::write_label_map_case(&name, &options, &out)?;
+        for l in &volume.labels {
+            let label = names
+                .iter()
+                .find(|(v, _)| *v == l.value)
+                .map_or("", |(_, n)| n.as_str());
+            println!(
+                "{}: label {} {label}: {} voxels",
+                out.join("segmentation.nii.gz").display(),
+                l.value,
+                l.n_voxels
+            );
+        }
+        return Ok(());
+    }
     if !["big", "cohort"].contains(&name.as_str())
         && !destair::phantom::cases::CASE_NAMES.contains(&name.as_str())
         && !destair::phantom::cases::SMOOTH_CASE_NAMES.contains(&name.as_str())

@@ -86,7 +86,7 @@ pub struct PhantomCase {
 /// Why a phantom could not be made or written.
 #[derive(Debug, Error)]
 pub enum PhantomError {
-    #[error("unknown phantom {0:?}; known: {known}, {smooth}, big, cohort", known = CASE_NAMES.join(", "), smooth = SMOOTH_CASE_NAMES.join(", "))]
+    #[error("unknown phantom {0:?}; known: {known}, {smooth}, {maps}, big, cohort", known = CASE_NAMES.join(", "), smooth = SMOOTH_CASE_NAMES.join(", "), maps = LABEL_MAP_NAMES.join(", "))]
     UnknownName(String),
     #[error("{0}")]
     Write(#[from] WriteError),
@@ -167,7 +167,7 @@ pub fn named_case(name: &str, options: &PhantomOptions) -> Result<PhantomCase, P
             ("cylinder with flat caps merged with a tilted cuboid on a 1 x 1 x 2 mm grid (Moench 2012, §4.3)", v, vec![("cap-cylinder", 1)])
         }
         "neck" => {
-            let v = neck_volume(&mut rng, [160, 160, 20], [0.45, 0.45, 3.0], 1.0);
+            let v = neck_volume(&mut rng, [160, 160, 20], [0.45, 0.45, 3.0], 1.0, false);
             ("tumor, vein and trachea at 0.45 x 0.45 x 3 mm; the vein passes a few tenths of a mm from the tumor (Moench 2010, distance-aware)", v, vec![("tumor", 1), ("vein", 2), ("trachea", 3)])
         }
         "aneurysm" => {
@@ -276,6 +276,7 @@ fn neck_volume(
     dims: [usize; 3],
     spacing: [f64; 3],
     scale: f64,
+    touching: bool,
 ) -> LabelVolume {
     let mut v = LabelVolume::new(dims, spacing, [0.0; 3]);
     let size: [f64; 3] = std::array::from_fn(|k| dims[k] as f64 * spacing[k]);
@@ -309,7 +310,19 @@ fn neck_volume(
     v.paint_where(vein.bounds().0, vein.bounds().1, 2, |p, current| {
         current == 0 && vein.contains(p)
     });
-    separate_labels(&mut v, 2, 1);
+    if touching {
+        // Segmentations of neighbours share a face where they touch: grow the vein into it.
+        let x_touch = c[0] + r[0] + 0.5 * vein_r;
+        let wider = Shape::Tube {
+            points: vec![[x_touch, c[1], -5.0], [x_touch, c[1], size[2] + 5.0]],
+            radii: vec![vein_r, vein_r],
+        };
+        v.paint_where(wider.bounds().0, wider.bounds().1, 2, |p, current| {
+            current == 0 && wider.contains(p)
+        });
+    } else {
+        separate_labels(&mut v, 2, 1);
+    }
     let trachea_r = 8.0 * scale;
     let tx = c[0] - r[0] - trachea_r - 6.0 * scale;
     let trachea = Shape::Tube {
@@ -543,7 +556,7 @@ pub fn cohort_case(index: usize, seed: u64) -> PhantomCase {
         (extent / spacing[1]) as usize,
         ((30.0 + 20.0 * rng.f64()) / spacing[2]) as usize,
     ];
-    let volume = neck_volume(&mut rng, dims, spacing, scale);
+    let volume = neck_volume(&mut rng, dims, spacing, scale, false);
     let options = PhantomOptions {
         rotate_x_deg: if rng.bool() {
             0.0
@@ -566,6 +579,93 @@ pub fn cohort_case(index: usize, seed: u64) -> PhantomCase {
         &[("tumor", 1), ("vein", 2), ("trachea", 3)],
         &options,
     )
+}
+
+/// Names of the label-map phantoms (`destair phantom NAME`), written as label maps, not meshes.
+pub const LABEL_MAP_NAMES: [&str; 1] = ["labelmap-neck"];
+
+/// A label-map phantom: the volume (grid rotated by the options' angles about its centre, so
+/// oblique acquisitions can be made) and its label names.
+pub fn label_map_case(
+    name: &str,
+    options: &PhantomOptions,
+) -> Result<(crate::volume::LabelVolume, Vec<(i64, String)>), PhantomError> {
+    use crate::volume::{Grid, Space};
+    let mut rng = fastrand::Rng::with_seed(options.seed);
+    let v = match name {
+        "labelmap-neck" => neck_volume(&mut rng, [160, 160, 20], [0.45, 0.45, 3.0], 1.0, true),
+        other => return Err(PhantomError::UnknownName(other.to_string())),
+    };
+    let rotation = rotation_matrix([options.rotate_x_deg, options.rotate_y_deg, 0.0]);
+    let center: [f64; 3] =
+        std::array::from_fn(|k| v.origin[k] + 0.5 * (v.dims[k] as f64 - 1.0) * v.spacing[k]);
+    let mut matrix = [[0.0; 3]; 3];
+    for r in 0..3 {
+        for c in 0..3 {
+            matrix[r][c] = rotation[r][c] * v.spacing[c];
+        }
+    }
+    // world(ijk) = center + R (origin + S ijk - center)
+    let shifted = apply(&rotation, std::array::from_fn(|k| v.origin[k] - center[k]));
+    let grid = Grid {
+        matrix,
+        origin: std::array::from_fn(|k| center[k] + shifted[k]),
+        space: Space::Lps,
+    };
+    let volume =
+        crate::volume::LabelVolume::from_values(v.dims, grid, v.labels.iter().map(|&l| l as i64))
+            .map_err(|e| PhantomError::Io {
+            path: name.into(),
+            source: std::io::Error::other(e),
+        })?;
+    let names = vec![
+        (1, "tumor".to_string()),
+        (2, "vein".to_string()),
+        (3, "trachea".to_string()),
+    ];
+    Ok((volume, names))
+}
+
+/// Writes a label-map phantom as `DIR/segmentation.nii.gz` and `DIR/phantom.json` (grid,
+/// affine, label values, names and voxel counts).
+pub fn write_label_map_case(
+    name: &str,
+    options: &PhantomOptions,
+    dir: &Path,
+) -> Result<(crate::volume::LabelVolume, Vec<(i64, String)>), PhantomError> {
+    let (volume, names) = label_map_case(name, options)?;
+    let io = |path: std::path::PathBuf| move |source| PhantomError::Io { path, source };
+    std::fs::create_dir_all(dir).map_err(io(dir.to_path_buf()))?;
+    let bytes = crate::volume::nifti::encode(&volume, true)
+        .map_err(|e| io(dir.to_path_buf())(std::io::Error::other(e)))?;
+    let path = dir.join("segmentation.nii.gz");
+    write_atomically(&path, |w| w.write_all(&bytes)).map_err(io(path.clone()))?;
+    let labels: Vec<serde_json::Value> = volume
+        .labels
+        .iter()
+        .map(|l| {
+            let name = names
+                .iter()
+                .find(|(v, _)| *v == l.value)
+                .map(|(_, n)| n.as_str());
+            serde_json::json!({ "value": l.value, "name": name, "n_voxels": l.n_voxels })
+        })
+        .collect();
+    let info = serde_json::json!({
+        "name": name,
+        "description": "tumor touching a vein, trachea apart, at 0.45 x 0.45 x 3 mm, as a NIfTI label map (LPS world written as NIfTI's RAS)",
+        "seed": options.seed,
+        "dims": volume.dims,
+        "spacing_mm": volume.grid.spacing(),
+        "affine_lps": volume.grid.affine(),
+        "rotate_x_deg": options.rotate_x_deg,
+        "rotate_y_deg": options.rotate_y_deg,
+        "labels": labels,
+    });
+    let json = serde_json::to_vec_pretty(&info).expect("label map info serialises");
+    let path = dir.join("phantom.json");
+    write_atomically(&path, |w| w.write_all(&json)).map_err(io(path.clone()))?;
+    Ok((volume, names))
 }
 
 /// Writes each structure as `DIR/<structure>.ply` and the description as `DIR/phantom.json`.
