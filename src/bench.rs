@@ -353,3 +353,66 @@ pub fn context(triangles: usize, repeat: usize) -> ContextBench {
         queries_per_s: queries.len() as f64 / queries_s,
     }
 }
+
+/// Results of `destair bench labelmap`.
+#[derive(Debug, Serialize)]
+pub struct LabelMapBench {
+    pub dims: [usize; 3],
+    pub n_labels: usize,
+    pub threads: usize,
+    /// Size of the `.nii.gz` (bytes).
+    pub gz_bytes: u64,
+    /// Best time to read and decode the `.nii.gz` into a label volume (s).
+    pub read_nii_gz_s: f64,
+    /// Best time for the same as uncompressed `.nii` (memory-mapped).
+    pub read_nii_s: f64,
+}
+
+/// A 512 x 512 x 300 u8 label map at 0.8 x 0.8 x 1.5 mm with 12 touching labels filling a
+/// ball (the reference volume), written to `dir` and read back `repeat` times.
+pub fn labelmap(dir: &Path, repeat: usize) -> std::io::Result<LabelMapBench> {
+    use crate::volume::{nifti, read_label_map, Grid, LabelVolume, Space};
+    let dims = [512usize, 512, 300];
+    let grid = Grid::axis_aligned([0.8, 0.8, 1.5], [0.0; 3], Space::Lps);
+    let values = (0..dims[2]).flat_map(|k| {
+        (0..dims[1]).flat_map(move |j| {
+            (0..dims[0]).map(move |i| {
+                let (x, y, z) = (i as f64 / 512.0, j as f64 / 512.0, k as f64 / 300.0);
+                let r2 = (x - 0.5).powi(2) + (y - 0.5).powi(2) + (z - 0.5).powi(2);
+                if r2 > 0.16 {
+                    0
+                } else {
+                    1 + (x * 3.0) as i64 + 3 * (y * 2.0) as i64 + 6 * (z * 2.0) as i64
+                }
+            })
+        })
+    });
+    let volume = LabelVolume::from_values(dims, grid, values).map_err(std::io::Error::other)?;
+    let mut out = LabelMapBench {
+        dims,
+        n_labels: volume.labels.len(),
+        threads: rayon::current_num_threads(),
+        gz_bytes: 0,
+        read_nii_gz_s: 0.0,
+        read_nii_s: 0.0,
+    };
+    for gz in [true, false] {
+        let path = dir.join(if gz {
+            "destair-bench.nii.gz"
+        } else {
+            "destair-bench.nii"
+        });
+        let bytes = nifti::encode(&volume, gz).map_err(std::io::Error::other)?;
+        crate::io::write_atomically(&path, |w| w.write_all(&bytes))?;
+        let (s, read) = best_of(repeat, || read_label_map(&path, Space::Lps));
+        let _ = std::fs::remove_file(&path);
+        read.map_err(|e| std::io::Error::other(e.to_string()))?;
+        if gz {
+            out.gz_bytes = bytes.len() as u64;
+            out.read_nii_gz_s = s;
+        } else {
+            out.read_nii_s = s;
+        }
+    }
+    Ok(out)
+}

@@ -27,6 +27,16 @@ pub enum Args {
         #[arg(long)]
         json: bool,
     },
+    /// Reading a 512 x 512 x 300 label map with 12 labels (.nii.gz and .nii).
+    Labelmap {
+        /// Folder for the temporary files (default: the system temp folder).
+        #[arg(long)]
+        dir: Option<PathBuf>,
+        #[arg(long, default_value_t = 3)]
+        repeat: usize,
+        #[arg(long)]
+        json: bool,
+    },
     /// PLY read+validate, write and topology build on a generated closed mesh.
     Io {
         /// Approximate number of triangles.
@@ -112,6 +122,24 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
                 r.hausdorff_s,
                 r.hausdorff_queries_per_s / 1e6
             );
+        }
+        Args::Labelmap { dir, repeat, json } => {
+            let dir = dir.unwrap_or_else(std::env::temp_dir);
+            let r = destair::bench::labelmap(&dir, repeat)?;
+            if json {
+                println!("{}", serde_json::to_string_pretty(&r)?);
+                return Ok(());
+            }
+            println!(
+                "bench labelmap: {} x {} x {} u8 voxels, {} labels, {} threads, best of {repeat}",
+                r.dims[0], r.dims[1], r.dims[2], r.n_labels, r.threads
+            );
+            println!(
+                "  read .nii.gz ({:.1} MB)  {:.4} s",
+                r.gz_bytes as f64 / 1e6,
+                r.read_nii_gz_s
+            );
+            println!("  read .nii (mapped)     {:.4} s", r.read_nii_s);
         }
         Args::Io {
             triangles,

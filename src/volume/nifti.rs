@@ -184,7 +184,7 @@ fn decode(h: &nifti::NiftiHeader, data: &[u8]) -> Result<LabelMap, String> {
     grid.check()?;
     let t = voxel_type(h.datatype)?;
     let big = h.endianness == nifti::Endianness::Big;
-    let volume = LabelVolume::from_values(dims, grid, t.values(data, big))?;
+    let volume = LabelVolume::from_raw(dims, grid, data, t, big, (0, 1))?;
     Ok(LabelMap {
         layers: vec![volume],
         segments: Vec::new(),

@@ -252,11 +252,14 @@ pub fn read(path: &Path) -> Result<LabelMap, String> {
     let dims_usize = dims.map(|d| d as usize);
     let mut layers = Vec::with_capacity(n_layers as usize);
     for layer in 0..n_layers as usize {
-        let values = t
-            .values(&raw, big_endian)
-            .skip(layer)
-            .step_by(n_layers as usize);
-        layers.push(LabelVolume::from_values(dims_usize, grid, values)?);
+        layers.push(LabelVolume::from_raw(
+            dims_usize,
+            grid,
+            &raw,
+            t,
+            big_endian,
+            (layer, n_layers as usize),
+        )?);
     }
     let segments = segments(&pairs, &mut warnings);
     Ok(LabelMap {
