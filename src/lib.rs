@@ -4,6 +4,7 @@
 //! See ARCHITECTURE.md for the map of modules; each module is one concept.
 
 pub mod analysis;
+pub mod extract;
 pub mod io;
 pub mod job;
 pub mod mesh;

@@ -42,6 +42,8 @@ enum Command {
     List(cli::list::Args),
     /// Rebuild the cohort summary from the case reports under one or more output folders.
     Summarize(cli::summarize::Args),
+    /// Extract one surface per label of a label map (touching structures share their interface).
+    Extract(cli::extract::Args),
     /// Generate a small phantom cohort and run config/demo.toml on it.
     Demo(cli::demo::Args),
     /// Generate phantom cases: marching-cubes meshes of analytic shapes with real staircases.
@@ -85,6 +87,7 @@ fn main() -> ExitCode {
         Command::List(a) => cli::list::exec(a),
         Command::Summarize(a) => cli::summarize::exec(a),
         Command::Demo(a) => cli::demo::exec(a),
+        Command::Extract(a) => cli::extract::exec(a),
         Command::Phantom(a) => cli::phantom::exec(a),
         Command::Bench { what } => cli::bench::exec(what),
     };

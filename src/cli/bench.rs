@@ -140,6 +140,10 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
                 r.read_nii_gz_s
             );
             println!("  read .nii (mapped)     {:.4} s", r.read_nii_s);
+            println!(
+                "  extract all labels     {:.4} s  ({} interface triangles)",
+                r.extract_s, r.n_interface_triangles
+            );
         }
         Args::Io {
             triangles,

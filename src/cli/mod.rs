@@ -7,6 +7,7 @@ pub mod bench;
 pub mod check;
 pub mod compare;
 pub mod demo;
+pub mod extract;
 pub mod inspect;
 pub mod list;
 pub mod phantom;

@@ -1,0 +1,190 @@
+//! `destair extract`: one surface per label of a label map, all extracted at once so that
+//! touching structures share their interface, plus `extract.json`.
+
+use super::{LabelMapInputError, UsageError};
+use destair::volume::Space;
+use std::path::PathBuf;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Label map (.nii, .nii.gz, .nrrd, .seg.nrrd, .nhdr).
+    labelmap: PathBuf,
+    /// Output folder: one mesh per label, and extract.json.
+    #[arg(long)]
+    out: PathBuf,
+    /// Names for label values, e.g. 1=tumor,2=vein (they win over names in the file).
+    #[arg(long, value_parser = parse_labels)]
+    labels: Option<LabelNames>,
+    /// World convention of the meshes: lps (3D Slicer's) or ras.
+    #[arg(long, value_enum, default_value_t = SpaceArg::Lps)]
+    space: SpaceArg,
+    /// Mesh format: ply or stl.
+    #[arg(long, value_enum, default_value_t = FormatArg::Ply)]
+    format: FormatArg,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum SpaceArg {
+    Lps,
+    Ras,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum FormatArg {
+    Ply,
+    Stl,
+}
+
+/// `VALUE=NAME` pairs from `--labels`.
+#[derive(Clone, Debug)]
+struct LabelNames(Vec<(i64, String)>);
+
+fn parse_labels(s: &str) -> Result<LabelNames, String> {
+    s.split(',')
+        .map(|pair| {
+            let (v, n) = pair
+                .split_once('=')
+                .ok_or_else(|| format!("expected VALUE=NAME, got {pair:?}"))?;
+            let value = v
+                .trim()
+                .parse::<i64>()
+                .map_err(|_| format!("label value {v:?} is not a whole number"))?;
+            let name = n.trim();
+            if name.is_empty() {
+                return Err(format!("label {value} has an empty name"));
+            }
+            Ok((value, name.to_string()))
+        })
+        .collect::<Result<_, _>>()
+        .map(LabelNames)
+}
+
+/// A name usable as a file stem: path separators and control characters replaced.
+fn file_stem(name: &str) -> String {
+    let s: String = name
+        .chars()
+        .map(|c| {
+            if c == '/' || c == '\\' || c.is_control() {
+                '_'
+            } else {
+                c
+            }
+        })
+        .collect();
+    if s.is_empty() || s == "." || s == ".." {
+        "label".into()
+    } else {
+        s
+    }
+}
+
+pub fn exec(args: Args) -> anyhow::Result<()> {
+    let space = match args.space {
+        SpaceArg::Lps => Space::Lps,
+        SpaceArg::Ras => Space::Ras,
+    };
+    if args.out.exists() && !args.out.is_dir() {
+        return Err(UsageError(format!(
+            "{}: exists and is not a folder",
+            args.out.display()
+        ))
+        .into());
+    }
+    let started = std::time::Instant::now();
+    let mut map =
+        destair::volume::read_label_map(&args.labelmap, space).map_err(LabelMapInputError)?;
+    let read_s = started.elapsed().as_secs_f64();
+    if let Some(names) = &args.labels {
+        for (value, name) in &names.0 {
+            let mut found = false;
+            for layer in &mut map.layers {
+                for l in layer.labels.iter_mut().filter(|l| l.value == *value) {
+                    l.name = name.clone();
+                    found = true;
+                }
+            }
+            if !found {
+                eprintln!("warning: --labels names {value}={name}, but no voxel holds {value}");
+            }
+        }
+    }
+    std::fs::create_dir_all(&args.out)
+        .map_err(|e| UsageError(format!("{}: cannot create: {e}", args.out.display())))?;
+    let meta = destair::io::MeshMeta {
+        comments: vec![
+            format!("SPACE={}", space.tag()),
+            format!(
+                "destair extract {}",
+                args.labelmap
+                    .file_name()
+                    .unwrap_or_default()
+                    .to_string_lossy()
+            ),
+        ],
+        obj_info: Vec::new(),
+    };
+    let ext = match args.format {
+        FormatArg::Ply => "ply",
+        FormatArg::Stl => "stl",
+    };
+    let mut rows = Vec::new();
+    let mut used = std::collections::BTreeSet::new();
+    let t_extract = std::time::Instant::now();
+    for (layer_index, layer) in map.layers.iter().enumerate() {
+        let all = destair::extract::interfaces(layer);
+        for s in destair::extract::label_surfaces(layer, &all) {
+            let label = &layer.labels[s.label as usize - 1];
+            let mut stem = file_stem(&label.name);
+            if !used.insert(stem.clone()) {
+                stem = format!("{stem}_{}", label.value);
+                used.insert(stem.clone());
+            }
+            let file = format!("{stem}.{ext}");
+            let path = args.out.join(&file);
+            super::refuse_overwriting_inputs(&path, &[args.labelmap.as_path()], false)?;
+            match args.format {
+                FormatArg::Ply => destair::io::ply::write_ply(&path, &s.mesh, &meta, &[])?,
+                FormatArg::Stl => destair::io::stl::write_stl(&path, &s.mesh, &meta)?,
+            }
+            rows.push(destair::extract::report::extracted_label(
+                layer_index,
+                label,
+                file,
+                &s.mesh,
+                &layer.grid,
+            ));
+        }
+    }
+    let extract_s = t_extract.elapsed().as_secs_f64();
+    let g = map.layers[0].grid;
+    let report = destair::extract::report::ExtractReport {
+        source: args.labelmap.display().to_string(),
+        space: space.tag().into(),
+        dims: map.layers[0].dims,
+        spacing_mm: g.spacing(),
+        affine: g.affine(),
+        labels: rows,
+        warnings: map.warnings.clone(),
+    };
+    let json = serde_json::to_vec_pretty(&report)?;
+    let path = args.out.join("extract.json");
+    destair::io::write_atomically(&path, |w| w.write_all(&json))
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    for l in &report.labels {
+        println!(
+            "{}: label {} ({}), {} voxels, {} triangles, volume {:.1} mm³ (voxels {:.1} mm³)",
+            args.out.join(&l.file).display(),
+            l.value,
+            l.name,
+            l.n_voxels,
+            l.n_triangles,
+            l.mesh_volume_mm3,
+            l.voxel_volume_mm3
+        );
+    }
+    for w in &report.warnings {
+        eprintln!("warning: {w}");
+    }
+    eprintln!("read in {read_s:.2} s, extracted in {extract_s:.2} s");
+    Ok(())
+}

@@ -1,0 +1,69 @@
+//! What `destair extract` writes beside the meshes: `extract.json` with the label map's grid
+//! and, per label, its name, voxel count, the volume of its voxels and of its surface (mm³),
+//! and whether the surface is a closed oriented 2-manifold.
+
+use crate::mesh::{geometry::signed_volume, Topology};
+use crate::volume::{Grid, Label};
+use serde::Serialize;
+
+/// One extracted structure.
+#[derive(Debug, Clone, Serialize)]
+pub struct ExtractedLabel {
+    pub layer: usize,
+    pub value: i64,
+    pub name: String,
+    /// Output file name (in the output folder).
+    pub file: String,
+    pub n_voxels: u64,
+    pub voxel_volume_mm3: f64,
+    pub mesh_volume_mm3: f64,
+    pub n_vertices: usize,
+    pub n_triangles: usize,
+    pub closed_oriented_manifold: bool,
+}
+
+/// `extract.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct ExtractReport {
+    pub source: String,
+    /// World convention of the meshes and of `affine` (also in each mesh's `SPACE=` comment).
+    pub space: String,
+    pub dims: [usize; 3],
+    pub spacing_mm: [f64; 3],
+    /// Index to world (mm), row by row.
+    pub affine: [[f64; 4]; 4],
+    pub labels: Vec<ExtractedLabel>,
+    pub warnings: Vec<String>,
+}
+
+/// Volume of one voxel of `grid` (mm³).
+pub fn voxel_volume(grid: &Grid) -> f64 {
+    let m = grid.matrix;
+    (m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]))
+        .abs()
+}
+
+/// The row of one extracted label.
+pub fn extracted_label(
+    layer: usize,
+    label: &Label,
+    file: String,
+    mesh: &crate::Mesh,
+    grid: &Grid,
+) -> ExtractedLabel {
+    let topology = Topology::build(mesh);
+    ExtractedLabel {
+        layer,
+        value: label.value,
+        name: label.name.clone(),
+        file,
+        n_voxels: label.n_voxels,
+        voxel_volume_mm3: label.n_voxels as f64 * voxel_volume(grid),
+        mesh_volume_mm3: signed_volume(mesh),
+        n_vertices: mesh.n_vertices(),
+        n_triangles: mesh.n_triangles(),
+        closed_oriented_manifold: topology.is_closed_oriented_manifold(),
+    }
+}

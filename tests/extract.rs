@@ -1,0 +1,369 @@
+//! Multi-label extraction (thesis §6.2) on random label volumes: every structure's surface is
+//! a closed, consistently oriented 2-manifold enclosing positive volume; touching structures
+//! share their interface triangles exactly; every voxel centre lies inside its own label's
+//! surface and outside every other (winding numbers).
+
+use destair::extract::{interfaces, label_surfaces};
+use destair::mesh::Topology;
+use destair::volume::{Grid, LabelVolume, Space};
+
+/// Generalised winding number of a closed triangle mesh around `p` (1 inside, 0 outside).
+fn winding(mesh: &destair::Mesh, p: [f64; 3]) -> f64 {
+    let pos = mesh.positions();
+    let mut total = 0.0;
+    for t in mesh.triangles() {
+        let [a, b, c] = t.map(|v| {
+            let q = pos[v as usize];
+            [q[0] as f64 - p[0], q[1] as f64 - p[1], q[2] as f64 - p[2]]
+        });
+        let len = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        let (la, lb, lc) = (len(a), len(b), len(c));
+        let det = a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+            + a[2] * (b[0] * c[1] - b[1] * c[0]);
+        let dot = |u: [f64; 3], v: [f64; 3]| u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
+        let div = la * lb * lc + dot(a, b) * lc + dot(b, c) * la + dot(c, a) * lb;
+        total += 2.0 * det.atan2(div);
+    }
+    total / (4.0 * std::f64::consts::PI)
+}
+
+fn random_volume(
+    rng: &mut fastrand::Rng,
+    n_labels: usize,
+    dims: [usize; 3],
+    fill: f64,
+) -> LabelVolume {
+    let n: usize = dims.iter().product();
+    // Blobs: random labels, then a few smoothing votes so regions are not all noise.
+    let mut v: Vec<i64> = (0..n)
+        .map(|_| {
+            if rng.f64() < fill {
+                rng.usize(1..=n_labels) as i64
+            } else {
+                0
+            }
+        })
+        .collect();
+    for _ in 0..rng.usize(0..3) {
+        let old = v.clone();
+        for k in 0..dims[2] {
+            for j in 0..dims[1] {
+                for i in 0..dims[0] {
+                    let at = |i: usize, j: usize, k: usize| old[i + dims[0] * (j + dims[1] * k)];
+                    let mut votes = std::collections::BTreeMap::new();
+                    for (di, dj, dk) in [
+                        (0i64, 0i64, 0i64),
+                        (1, 0, 0),
+                        (-1, 0, 0),
+                        (0, 1, 0),
+                        (0, -1, 0),
+                        (0, 0, 1),
+                        (0, 0, -1),
+                    ] {
+                        let (x, y, z) = (i as i64 + di, j as i64 + dj, k as i64 + dk);
+                        if x >= 0
+                            && y >= 0
+                            && z >= 0
+                            && (x as usize) < dims[0]
+                            && (y as usize) < dims[1]
+                            && (z as usize) < dims[2]
+                        {
+                            *votes
+                                .entry(at(x as usize, y as usize, z as usize))
+                                .or_insert(0) += 1;
+                        }
+                    }
+                    let best = votes
+                        .iter()
+                        .max_by_key(|(l, c)| (**c, -**l))
+                        .map(|(l, _)| *l)
+                        .unwrap_or(0);
+                    v[i + dims[0] * (j + dims[1] * k)] = best;
+                }
+            }
+        }
+    }
+    // An oblique, anisotropic grid: a rotation about (1, 2, 3) by a random angle.
+    let angle = rng.f64() * 6.0;
+    let axis = [1.0f64, 2.0, 3.0].map(|x| x / 14f64.sqrt());
+    let (c, s) = (angle.cos(), angle.sin());
+    let rot = |r: usize, k: usize| {
+        let d = if r == k { c } else { 0.0 };
+        let cross = [
+            [0.0, -axis[2], axis[1]],
+            [axis[2], 0.0, -axis[0]],
+            [-axis[1], axis[0], 0.0],
+        ];
+        d + (1.0 - c) * axis[r] * axis[k] + s * cross[r][k]
+    };
+    let spacing = [0.7, 0.9, 2.5];
+    let matrix = std::array::from_fn(|r| std::array::from_fn(|k| rot(r, k) * spacing[k]));
+    let grid = Grid {
+        matrix,
+        origin: [1.0, -2.0, 3.0],
+        space: Space::Lps,
+    };
+    LabelVolume::from_values(dims, grid, v.into_iter()).unwrap()
+}
+
+#[test]
+fn every_label_is_a_closed_oriented_manifold_around_its_own_voxels() {
+    let mut rng = fastrand::Rng::with_seed(7);
+    let mut failures = Vec::new();
+    let mut tested_points = 0;
+    let rounds = 300;
+    for round in 0..rounds {
+        let n_labels = rng.usize(1..=6);
+        let dims = [rng.usize(1..7), rng.usize(1..7), rng.usize(1..6)];
+        let fill = 0.3 + 0.6 * rng.f64();
+        let volume = random_volume(&mut rng, n_labels, dims, fill);
+        let all = interfaces(&volume);
+        let surfaces = label_surfaces(&volume, &all);
+        for s in &surfaces {
+            let t = Topology::build(&s.mesh);
+            let ok = t.boundary_loops().is_empty()
+                && t.non_manifold_edges().is_empty()
+                && t.non_manifold_vertices().is_empty()
+                && t.inconsistent_edges().is_empty()
+                && t.degenerate_triangles().is_empty()
+                && destair::mesh::geometry::signed_volume(&s.mesh) > 0.0;
+            if !ok {
+                failures.push(format!(
+                    "round {round} label {}: {} loops, {} nm edges, {} nm vertices, {} inconsistent, {} degenerate, volume {:.3}",
+                    s.label,
+                    t.boundary_loops().len(),
+                    t.non_manifold_edges().len(),
+                    t.non_manifold_vertices().len(),
+                    t.inconsistent_edges().len(),
+                    t.degenerate_triangles().len(),
+                    destair::mesh::geometry::signed_volume(&s.mesh)
+                ));
+            }
+        }
+        // No two structures overlap: at random points the winding numbers add up to 0 or 1.
+        for _ in 0..20 {
+            let q = [
+                rng.f64() * dims[0] as f64 - 0.5,
+                rng.f64() * dims[1] as f64 - 0.5,
+                rng.f64() * dims[2] as f64 - 0.5,
+            ];
+            let p = volume.grid.world(q);
+            let sum: f64 = surfaces.iter().map(|s| winding(&s.mesh, p)).sum();
+            tested_points += 1;
+            if !((sum.abs() < 1e-3) || (sum - 1.0).abs() < 1e-3) {
+                failures.push(format!(
+                    "round {round}: winding numbers add up to {sum:.3} at {q:?}"
+                ));
+            }
+        }
+        // Voxel centres: inside their own surface, outside all others.
+        for k in 0..dims[2] {
+            for j in 0..dims[1] {
+                for i in 0..dims[0] {
+                    let own = volume.at(i, j, k);
+                    let p = volume.grid.world([i as f64, j as f64, k as f64]);
+                    for s in &surfaces {
+                        let w = winding(&s.mesh, p);
+                        let want = if s.label == own { 1.0 } else { 0.0 };
+                        if (w - want).abs() > 1e-3 {
+                            failures.push(format!("round {round}: voxel ({i},{j},{k}) of label {own}: winding {w:.3} for label {}", s.label));
+                        }
+                    }
+                }
+            }
+        }
+    }
+    let n = failures.len();
+    assert!(tested_points > 1000, "{tested_points}");
+    failures.truncate(15);
+    assert!(n == 0, "{n} failures:\n{}", failures.join("\n"));
+}
+
+/// Inverse of a grid's 3 x 3 matrix (index steps to world).
+fn inverse(m: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+    let c =
+        |r0: usize, c0: usize, r1: usize, c1: usize| m[r0][c0] * m[r1][c1] - m[r0][c1] * m[r1][c0];
+    [
+        [
+            c(1, 1, 2, 2) / det,
+            -c(0, 1, 2, 2) / det,
+            c(0, 1, 1, 2) / det,
+        ],
+        [
+            -c(1, 0, 2, 2) / det,
+            c(0, 0, 2, 2) / det,
+            -c(0, 0, 1, 2) / det,
+        ],
+        [
+            c(1, 0, 2, 1) / det,
+            -c(0, 0, 2, 1) / det,
+            c(0, 0, 1, 1) / det,
+        ],
+    ]
+}
+
+#[test]
+fn surfaces_sit_where_the_affine_puts_them_with_the_voxels_volume() {
+    use destair::volume::{nifti, nrrd, read_label_map};
+    let dir = tempfile::tempdir().unwrap();
+    let options = destair::phantom::PhantomOptions {
+        rotate_x_deg: 25.0,
+        rotate_y_deg: -10.0,
+        ..Default::default()
+    };
+    let (volume, _) = destair::phantom::cases::label_map_case("labelmap-neck", &options).unwrap();
+    for (name, bytes) in [
+        ("n.nii.gz", nifti::encode(&volume, true).unwrap()),
+        (
+            "n.nrrd",
+            nrrd::encode(std::slice::from_ref(&volume), &[], true).unwrap(),
+        ),
+        (
+            "ras.nrrd",
+            nrrd::encode(
+                &[LabelVolume {
+                    grid: volume.grid.in_space(Space::Ras),
+                    ..volume.clone()
+                }],
+                &[],
+                false,
+            )
+            .unwrap(),
+        ),
+    ] {
+        let path = dir.path().join(name);
+        std::fs::write(&path, bytes).unwrap();
+        for space in [Space::Lps, Space::Ras] {
+            let map = read_label_map(&path, space).unwrap();
+            let v = &map.layers[0];
+            let all = interfaces(v);
+            let voxel_mm3 = destair::extract::report::voxel_volume(&v.grid);
+            let inv = inverse(&v.grid.matrix);
+            for s in label_surfaces(v, &all) {
+                let label = &v.labels[s.label as usize - 1];
+                let mesh_mm3 = destair::mesh::geometry::signed_volume(&s.mesh);
+                let voxels_mm3 = label.n_voxels as f64 * voxel_mm3;
+                assert!(label.n_voxels >= 5000, "{label:?}");
+                let off = (mesh_mm3 / voxels_mm3 - 1.0).abs();
+                assert!(
+                    off < 0.02,
+                    "{name} {space:?} {}: mesh {mesh_mm3:.1} vs voxels {voxels_mm3:.1} mm³",
+                    label.name
+                );
+                // In index space the surface reaches half a voxel beyond the label's voxels
+                // (edge midpoints) and stays within the cells around them (branching points
+                // lie inside those cells).
+                let (mut lo, mut hi) = ([f64::MAX; 3], [f64::MIN; 3]);
+                for k in 0..v.dims[2] {
+                    for j in 0..v.dims[1] {
+                        for i in 0..v.dims[0] {
+                            if v.at(i, j, k) == s.label {
+                                for (a, x) in [i, j, k].into_iter().enumerate() {
+                                    lo[a] = lo[a].min(x as f64);
+                                    hi[a] = hi[a].max(x as f64);
+                                }
+                            }
+                        }
+                    }
+                }
+                let (mut mlo, mut mhi) = ([f64::MAX; 3], [f64::MIN; 3]);
+                for p in s.mesh.positions() {
+                    let d: [f64; 3] = std::array::from_fn(|r| p[r] as f64 - v.grid.origin[r]);
+                    let idx: [f64; 3] = std::array::from_fn(|r| {
+                        inv[r][0] * d[0] + inv[r][1] * d[1] + inv[r][2] * d[2]
+                    });
+                    for a in 0..3 {
+                        mlo[a] = mlo[a].min(idx[a]);
+                        mhi[a] = mhi[a].max(idx[a]);
+                    }
+                }
+                for a in 0..3 {
+                    let reach = mlo[a] <= lo[a] - 0.5 + 1e-3 && mhi[a] >= hi[a] + 0.5 - 1e-3;
+                    let within = mlo[a] > lo[a] - 1.0 && mhi[a] < hi[a] + 1.0;
+                    assert!(
+                        reach && within,
+                        "{name} {space:?} {} axis {a}: mesh {:.4}..{:.4}, voxels {}..{}",
+                        label.name,
+                        mlo[a],
+                        mhi[a],
+                        lo[a],
+                        hi[a]
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn extract_writes_one_mesh_per_label_and_its_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_destair"))
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let src = dir.path().join("phantom");
+    assert!(
+        run(&["phantom", "labelmap-neck", "--out", src.to_str().unwrap()])
+            .status
+            .success()
+    );
+    let seg = src.join("segmentation.nii.gz");
+    let out = dir.path().join("out");
+    let r = run(&[
+        "extract",
+        seg.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--labels",
+        "1=tumor,2=vein",
+        "--space",
+        "ras",
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("extract.json")).unwrap()).unwrap();
+    assert_eq!(report["space"], "RAS");
+    let files: Vec<&str> = report["labels"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|l| l["file"].as_str().unwrap())
+        .collect();
+    assert_eq!(files, ["tumor.ply", "vein.ply", "label_3.ply"]);
+    for l in report["labels"].as_array().unwrap() {
+        assert_eq!(l["closed_oriented_manifold"], true, "{l}");
+        let (m, v) = (
+            l["mesh_volume_mm3"].as_f64().unwrap(),
+            l["voxel_volume_mm3"].as_f64().unwrap(),
+        );
+        assert!((m / v - 1.0).abs() < 0.02, "{l}");
+    }
+    let tumor = destair::io::read_mesh(&out.join("tumor.ply"), &Default::default()).unwrap();
+    assert_eq!(tumor.meta.space(), Some("RAS"));
+    // Refusals: a bad label list, and a label map that is not one.
+    let r = run(&[
+        "extract",
+        seg.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--labels",
+        "x=tumor",
+    ]);
+    assert_eq!(r.status.code(), Some(2));
+    let bad = dir.path().join("bad.nrrd");
+    std::fs::write(&bad, b"NRRD0004\ntype: float\n\n").unwrap();
+    let r = run(&[
+        "extract",
+        bad.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(r.status.code(), Some(3));
+    assert!(String::from_utf8_lossy(&r.stderr).contains("bad.nrrd"));
+}
