@@ -92,8 +92,8 @@ pub fn interfaces(volume: &LabelVolume) -> Interfaces {
         positions: Vec::new(),
     };
     let mut out = Interfaces::default();
-    let mut segments: Vec<Segment> = Vec::with_capacity(24);
-    let mut points: Vec<(u64, [f64; 3])> = Vec::with_capacity(48);
+    let mut templates: FxHashMap<u32, Template> = FxHashMap::default();
+    let mut ids: Vec<u32> = Vec::with_capacity(32);
     for k in -1..nz {
         for j in -1..ny {
             for i in -1..nx {
@@ -108,33 +108,116 @@ pub fn interfaces(volume: &LabelVolume) -> Interfaces {
                 if labels.iter().all(|&l| l == labels[0]) {
                     continue;
                 }
-                let pos = |c: usize| -> [f64; 3] {
-                    [
-                        (i + (c & 1) as i64) as f64,
-                        (j + ((c >> 1) & 1) as i64) as f64,
-                        (k + ((c >> 2) & 1) as i64) as f64,
-                    ]
-                };
-                let gid = |c: usize| {
+                // The configuration up to the labels' values: each corner's rank among the
+                // cell's distinct labels (the order decides the diagonal faces).
+                let mut distinct = labels;
+                distinct.sort_unstable();
+                let n_distinct = dedup_sorted(&mut distinct);
+                let distinct = &distinct[..n_distinct];
+                let key = labels.iter().fold(0u32, |acc, l| {
+                    acc << 3 | distinct.iter().position(|d| d == l).unwrap_or(0) as u32
+                });
+                let template = templates.entry(key).or_insert_with(|| Template::of(key));
+                let gid = |c: u64| {
                     point_id(
                         i + (c & 1) as i64,
                         j + ((c >> 1) & 1) as i64,
                         k + ((c >> 2) & 1) as i64,
                     )
                 };
-                segments.clear();
-                points.clear();
-                for axis in 0..3 {
-                    for side in 0..2 {
-                        face_segments(axis, side, &labels, &pos, &gid, &mut segments, &mut points);
-                    }
+                let cell_key = point_id(i, j, k);
+                ids.clear();
+                for &(local, p) in &template.vertices {
+                    let global = match local & 3 {
+                        KIND_EDGE | KIND_FACE => {
+                            let v = local >> 2;
+                            (((gid(v / 3) * 3) + v % 3) << 2) | (local & 3)
+                        }
+                        _ => (cell_key << 12) | (local >> 2) << 2 | KIND_APEX,
+                    };
+                    let at = [p[0] + i as f64, p[1] + j as f64, p[2] + k as f64];
+                    ids.push(verts.get(global, || at));
                 }
-                cell_triangles(&segments, &points, point_id(i, j, k), &mut verts, &mut out);
+                for t in &template.triangles {
+                    out.triangles.push(t.corners.map(|x| ids[x as usize]));
+                    out.outer_apex.push(ids[t.outer_apex as usize]);
+                    out.sides.push(t.sides.map(|r| distinct[r as usize]));
+                }
             }
         }
     }
     out.positions = verts.positions;
     out
+}
+
+/// Moves the distinct values of a sorted array to its front; returns how many there are.
+fn dedup_sorted(a: &mut [u16; 8]) -> usize {
+    let mut n = 1;
+    for x in 1..8 {
+        if a[x] != a[n - 1] {
+            a[n] = a[x];
+            n += 1;
+        }
+    }
+    n
+}
+
+/// A triangle of a cell template: indices into the template's vertices, and the labels on its
+/// sides as ranks among the cell's distinct labels.
+#[derive(Clone, Copy)]
+struct TemplateTriangle {
+    corners: [u16; 3],
+    outer_apex: u16,
+    sides: [u8; 2],
+}
+
+/// The triangulation of one cell configuration, derived once and reused for every cell with
+/// the same corner ranks: vertices as local keys (edge, face or branching point) with their
+/// positions in the unit cell.
+struct Template {
+    vertices: Vec<(u64, [f64; 3])>,
+    triangles: Vec<TemplateTriangle>,
+}
+
+impl Template {
+    /// Derives the template of the configuration `key` (3 bits of rank per corner, corner 0
+    /// in the highest bits).
+    fn of(key: u32) -> Template {
+        let labels: [u16; 8] = std::array::from_fn(|c| ((key >> (3 * (7 - c))) & 7) as u16);
+        let pos = |c: usize| [(c & 1) as f64, ((c >> 1) & 1) as f64, ((c >> 2) & 1) as f64];
+        let gid = |c: usize| c as u64;
+        let mut segments = Vec::with_capacity(24);
+        let mut points = Vec::with_capacity(48);
+        for axis in 0..3 {
+            for side in 0..2 {
+                face_segments(axis, side, &labels, &pos, &gid, &mut segments, &mut points);
+            }
+        }
+        let mut verts = Vertices {
+            index: FxHashMap::default(),
+            positions: Vec::new(),
+        };
+        let mut out = Interfaces::default();
+        cell_triangles(&segments, &points, 0, &mut verts, &mut out);
+        let mut keys = vec![0u64; verts.positions.len()];
+        for (&key, &at) in &verts.index {
+            keys[at as usize] = key;
+        }
+        Template {
+            vertices: keys.into_iter().zip(verts.positions).collect(),
+            triangles: out
+                .triangles
+                .iter()
+                .zip(&out.outer_apex)
+                .zip(&out.sides)
+                .map(|((t, &o), s)| TemplateTriangle {
+                    corners: t.map(|x| x as u16),
+                    outer_apex: o as u16,
+                    sides: s.map(|x| x as u8),
+                })
+                .collect(),
+        }
+    }
 }
 
 /// The segments of one cube face (normal `axis`, at `side` 0 or 1), decided from its four
@@ -422,9 +505,9 @@ fn cell_triangles(
     }
 }
 
-/// Key of a cell's branching point: the cell, the component, and the copy.
+/// Key of a cell's branching point: the cell, the component, and the copy (10 bits).
 fn apex_key(cell_key: u64, component: u64, copy: u64) -> u64 {
-    (((cell_key * 16 + component.min(15)) * 64 + copy.min(63)) << 2) | KIND_APEX
+    ((cell_key << 12) | (component.min(15) * 64 + copy.min(63)) << 2) | KIND_APEX
 }
 
 /// (b - a) x (c - a) . (w - a): positive when `w` lies on the side the normal points to.
