@@ -16,23 +16,7 @@ fn random_grid(rng: &mut fastrand::Rng, space: Space) -> Grid {
     ];
     let n = q.iter().map(|x| x * x).sum::<f64>().sqrt();
     let [a, b, c, d] = q.map(|x| x / n);
-    let rot = [
-        [
-            a * a + b * b - c * c - d * d,
-            2.0 * (b * c - a * d),
-            2.0 * (b * d + a * c),
-        ],
-        [
-            2.0 * (b * c + a * d),
-            a * a + c * c - b * b - d * d,
-            2.0 * (c * d - a * b),
-        ],
-        [
-            2.0 * (b * d - a * c),
-            2.0 * (c * d + a * b),
-            a * a + d * d - c * c - b * b,
-        ],
-    ];
+    let rot = destair::volume::grid::quaternion_rotation(a, b, c, d);
     let spacing = [0.3 + rng.f64(), 0.3 + rng.f64(), 1.0 + 3.0 * rng.f64()];
     let mut matrix = [[0.0; 3]; 3];
     for r in 0..3 {

@@ -85,21 +85,34 @@ impl LabelVolume {
             *v = new_id[*v as usize];
             counts[*v as usize] += 1;
         }
-        let labels = order
+        let values: Vec<i64> = order.iter().map(|&i| seen[i]).collect();
+        Ok(LabelVolume::labelled(dims, grid, voxels, &values, &counts))
+    }
+
+    /// A volume from dense voxel indices, the label values in index order, and the voxel count
+    /// of each index (background first).
+    fn labelled(
+        dims: [usize; 3],
+        grid: Grid,
+        voxels: Vec<u16>,
+        values: &[i64],
+        counts: &[u64],
+    ) -> LabelVolume {
+        let labels = values
             .iter()
-            .enumerate()
-            .map(|(rank, &i)| Label {
-                value: seen[i],
-                name: format!("label_{}", seen[i]),
-                n_voxels: counts[rank + 1],
+            .zip(&counts[1..])
+            .map(|(&value, &n_voxels)| Label {
+                value,
+                name: format!("label_{value}"),
+                n_voxels,
             })
             .collect();
-        Ok(LabelVolume {
+        LabelVolume {
             dims,
             grid,
             voxels,
             labels,
-        })
+        }
     }
 }
 
@@ -210,21 +223,7 @@ impl LabelVolume {
                     }
                 }
             });
-        let labels = values
-            .iter()
-            .enumerate()
-            .map(|(id, &value)| Label {
-                value,
-                name: format!("label_{value}"),
-                n_voxels: counts[id + 1],
-            })
-            .collect();
-        Ok(LabelVolume {
-            dims,
-            grid,
-            voxels,
-            labels,
-        })
+        Ok(LabelVolume::labelled(dims, grid, voxels, &values, &counts))
     }
 }
 
