@@ -367,3 +367,27 @@ fn extract_writes_one_mesh_per_label_and_its_report() {
     assert_eq!(r.status.code(), Some(3));
     assert!(String::from_utf8_lossy(&r.stderr).contains("bad.nrrd"));
 }
+
+#[test]
+fn results_do_not_depend_on_the_thread_count() {
+    let mut rng = fastrand::Rng::with_seed(21);
+    let volume = random_volume(&mut rng, 5, [12, 10, 23], 0.6);
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| {
+                let all = interfaces(&volume);
+                label_surfaces(&volume, &all)
+                    .into_iter()
+                    .map(|s| s.mesh)
+                    .collect::<Vec<_>>()
+            })
+    };
+    let one = run(1);
+    assert!(one.iter().any(|m| m.n_triangles() > 0));
+    for threads in [2, 3, 7] {
+        assert!(run(threads) == one, "{threads} threads");
+    }
+}

@@ -72,15 +72,74 @@ const KIND_EDGE: u64 = 0;
 const KIND_FACE: u64 = 1;
 const KIND_APEX: u64 = 2;
 
+/// Slabs of cells (along z) per parallel task. Fixed, so results do not depend on the thread
+/// count.
+const SLAB: i64 = 4;
+
+/// What one slab of cells produced: its vertices (global keys, first-seen order) and triangles
+/// over them.
+struct SlabOutput {
+    keys: Vec<u64>,
+    positions: Vec<[f64; 3]>,
+    triangles: Vec<[u32; 3]>,
+    outer_apex: Vec<u32>,
+    sides: Vec<[u16; 2]>,
+}
+
 /// Extracts every interface of `volume` (labels outside the volume count as background, so
-/// structures that reach the border are closed there by a flat cap).
+/// structures that reach the border are closed there by a flat cap). Slabs of cells run in
+/// parallel; merging them in order gives the same vertex order as one sequential scan.
 pub fn interfaces(volume: &LabelVolume) -> Interfaces {
+    use rayon::prelude::*;
+    let nz = volume.dims[2] as i64;
+    let n_slabs = (nz + 1 + SLAB - 1) / SLAB;
+    let slabs: Vec<SlabOutput> = (0..n_slabs)
+        .into_par_iter()
+        .map(|s| {
+            let k0 = -1 + s * SLAB;
+            slab(volume, k0..(k0 + SLAB).min(nz))
+        })
+        .collect();
+    let mut index: FxHashMap<u64, u32> = FxHashMap::default();
+    let mut out = Interfaces::default();
+    for slab in slabs {
+        let map: Vec<u32> = slab
+            .keys
+            .iter()
+            .zip(&slab.positions)
+            .map(|(&key, &p)| {
+                let next = out.positions.len() as u32;
+                *index.entry(key).or_insert_with(|| {
+                    out.positions.push(p);
+                    next
+                })
+            })
+            .collect();
+        out.triangles
+            .extend(slab.triangles.iter().map(|t| t.map(|v| map[v as usize])));
+        out.outer_apex
+            .extend(slab.outer_apex.iter().map(|&v| map[v as usize]));
+        out.sides.extend(slab.sides);
+    }
+    out
+}
+
+/// The cells whose lower corner lies in the z range `ks` (from -1: the pad below the volume).
+fn slab(volume: &LabelVolume, ks: std::ops::Range<i64>) -> SlabOutput {
     let [nx, ny, nz] = volume.dims.map(|d| d as i64);
-    let label = |i: i64, j: i64, k: i64| -> u16 {
-        if i < 0 || j < 0 || k < 0 || i >= nx || j >= ny || k >= nz {
-            0
+    // A row of voxels along x, or none outside the volume (background).
+    let row = |j: i64, k: i64| -> Option<&[u16]> {
+        if j < 0 || k < 0 || j >= ny || k >= nz {
+            None
         } else {
-            volume.voxels[(i + nx * (j + ny * k)) as usize]
+            let at = (nx * (j + ny * k)) as usize;
+            Some(&volume.voxels[at..at + nx as usize])
+        }
+    };
+    let at = |r: Option<&[u16]>, i: i64| -> u16 {
+        match r {
+            Some(r) if i >= 0 && i < nx => r[i as usize],
+            _ => 0,
         }
     };
     // Grid points with a one-voxel pad, numbered for vertex keys.
@@ -94,17 +153,31 @@ pub fn interfaces(volume: &LabelVolume) -> Interfaces {
     let mut out = Interfaces::default();
     let mut templates: FxHashMap<u32, Template> = FxHashMap::default();
     let mut ids: Vec<u32> = Vec::with_capacity(32);
-    for k in -1..nz {
+    for k in ks {
         for j in -1..ny {
+            let rows = [row(j, k), row(j + 1, k), row(j, k + 1), row(j + 1, k + 1)];
+            if rows.iter().all(Option::is_none) {
+                continue;
+            }
+            // Inside the volume, cells whose four rows hold one label are skipped without
+            // building their corners.
+            let full = match rows {
+                [Some(a), Some(b), Some(c), Some(d)] => Some([a, b, c, d]),
+                _ => None,
+            };
             for i in -1..nx {
-                let corner = |c: usize| {
-                    label(
-                        i + (c & 1) as i64,
-                        j + ((c >> 1) & 1) as i64,
-                        k + ((c >> 2) & 1) as i64,
-                    )
-                };
-                let labels: [u16; 8] = std::array::from_fn(corner);
+                if let Some(r) = full {
+                    if i >= 0 && i + 1 < nx {
+                        let (x, y) = (i as usize, i as usize + 1);
+                        let v = r[0][x];
+                        if r.iter().all(|row| row[x] == v && row[y] == v) {
+                            continue;
+                        }
+                    }
+                }
+                // Corner c = dx + 2 dy + 4 dz: row dy + 2 dz, position i + dx.
+                let labels: [u16; 8] =
+                    std::array::from_fn(|c| at(rows[c >> 1], i + (c & 1) as i64));
                 if labels.iter().all(|&l| l == labels[0]) {
                     continue;
                 }
@@ -146,8 +219,17 @@ pub fn interfaces(volume: &LabelVolume) -> Interfaces {
             }
         }
     }
-    out.positions = verts.positions;
-    out
+    let mut keys = vec![0u64; verts.positions.len()];
+    for (&key, &at) in &verts.index {
+        keys[at as usize] = key;
+    }
+    SlabOutput {
+        keys,
+        positions: verts.positions,
+        triangles: out.triangles,
+        outer_apex: out.outer_apex,
+        sides: out.sides,
+    }
 }
 
 /// Moves the distinct values of a sorted array to its front; returns how many there are.
@@ -523,34 +605,42 @@ fn outward_dot(a: [f64; 3], b: [f64; 3], c: [f64; 3], w: [f64; 3]) -> f64 {
 }
 
 /// One closed surface per label (normals outward, vertices in world mm through the volume's
-/// grid), made of the shared interface triangles.
+/// grid), made of the shared interface triangles; labels are assembled in parallel.
 pub fn label_surfaces(volume: &LabelVolume, all: &Interfaces) -> Vec<LabelSurface> {
-    let world: Vec<[f32; 3]> = all
-        .positions
-        .iter()
-        .map(|&p| volume.grid.world(p).map(|x| x as f32))
-        .collect();
-    (1..=volume.labels.len() as u16)
+    use rayon::prelude::*;
+    let n_labels = volume.labels.len();
+    // Each triangle goes to the labels on its two sides (background has no surface).
+    let mut buckets: Vec<Vec<u32>> = vec![Vec::new(); n_labels + 1];
+    for (t, sides) in all.sides.iter().enumerate() {
+        for &l in sides {
+            buckets[l as usize].push(t as u32);
+        }
+    }
+    (1..=n_labels as u16)
+        .into_par_iter()
         .map(|label| {
-            let mut local: FxHashMap<u32, u32> = FxHashMap::default();
+            let mut local = vec![u32::MAX; all.positions.len()];
             let mut positions = Vec::new();
-            let mut triangles = Vec::new();
-            for ((t, sides), &outer) in all.triangles.iter().zip(&all.sides).zip(&all.outer_apex) {
+            let mut triangles = Vec::with_capacity(buckets[label as usize].len());
+            for &t in &buckets[label as usize] {
+                let (tri, sides) = (all.triangles[t as usize], all.sides[t as usize]);
                 let tri = if sides[0] == label {
-                    *t
-                } else if sides[1] == label {
-                    [t[0], outer, t[1]]
+                    tri
                 } else {
-                    continue;
+                    [tri[0], all.outer_apex[t as usize], tri[1]]
                 };
-                let mapped = tri.map(|v| {
-                    let next = positions.len() as u32;
-                    *local.entry(v).or_insert_with(|| {
-                        positions.push(world[v as usize]);
-                        next
-                    })
-                });
-                triangles.push(mapped);
+                triangles.push(tri.map(|v| {
+                    if local[v as usize] == u32::MAX {
+                        local[v as usize] = positions.len() as u32;
+                        positions.push(
+                            volume
+                                .grid
+                                .world(all.positions[v as usize])
+                                .map(|x| x as f32),
+                        );
+                    }
+                    local[v as usize]
+                }));
             }
             let mesh = Mesh::new(positions, triangles).unwrap_or_default();
             LabelSurface { label, mesh }
