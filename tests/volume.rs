@@ -245,7 +245,7 @@ fn bad_headers_name_the_file_and_the_problem() {
     assert!(read_label_map(&path, Space::Lps)
         .unwrap_err()
         .to_string()
-        .contains("the file has"));
+        .contains("the data holds"));
     let mut zero = bytes.clone();
     for at in [280usize, 296, 312] {
         zero[at..at + 12].fill(0); // every sform row's directions

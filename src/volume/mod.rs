@@ -297,6 +297,17 @@ pub fn read_label_map(path: &Path, space: Space) -> Result<LabelMap, LabelMapErr
     Ok(map)
 }
 
+/// The `n` bytes of voxels at `offset`, or what the header claims against what there is.
+pub(crate) fn exact_slice(data: &[u8], offset: u64, n: u64) -> Result<&[u8], String> {
+    match offset.checked_add(n) {
+        Some(end) if end <= data.len() as u64 => Ok(&data[offset as usize..end as usize]),
+        _ => Err(format!(
+            "the header says {n} bytes of voxels from byte {offset}; the data holds {} bytes",
+            data.len()
+        )),
+    }
+}
+
 /// Gzip-decompresses at most `expected` bytes, failing clearly when the stream is truncated,
 /// corrupt, or holds more data than the header says. Memory grows with the data actually
 /// decoded, never with the header's claim.

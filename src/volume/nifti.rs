@@ -89,16 +89,7 @@ pub fn read(path: &Path) -> Result<LabelMap, String> {
         decode(&h, &all[offset as usize..])
     } else {
         let (h, offset, n_bytes) = header(bytes)?;
-        let end = offset
-            .checked_add(n_bytes)
-            .filter(|&e| e <= bytes.len() as u64);
-        let Some(end) = end else {
-            return Err(format!(
-                "the header says {n_bytes} bytes of voxels from byte {offset}; the file has {} bytes",
-                bytes.len()
-            ));
-        };
-        decode(&h, &bytes[offset as usize..end as usize])
+        decode(&h, super::exact_slice(bytes, offset, n_bytes)?)
     }
 }
 

@@ -230,18 +230,7 @@ pub fn read(path: &Path) -> Result<LabelMap, String> {
         None => &bytes[data_start..],
     };
     let raw: std::borrow::Cow<[u8]> = match field("encoding")? {
-        "raw" => {
-            let end = skip
-                .checked_add(n_bytes)
-                .filter(|&e| e <= data.len() as u64);
-            let Some(end) = end else {
-                return Err(format!(
-                    "the header says {n_bytes} bytes of voxels; the data holds {}",
-                    data.len() as u64 - skip.min(data.len() as u64)
-                ));
-            };
-            std::borrow::Cow::Borrowed(&data[skip as usize..end as usize])
-        }
+        "raw" => std::borrow::Cow::Borrowed(super::exact_slice(data, skip, n_bytes)?),
         "gzip" | "gz" => {
             let mut all = gunzip_exact(data, skip + n_bytes)?;
             all.drain(..skip as usize);
