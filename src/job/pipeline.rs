@@ -314,16 +314,15 @@ pub fn run(
                 }
                 let outcome = write_case_output(&plan, &out, &options.protected);
                 lock.unlock(&scope);
-                budget.release(size);
                 written += 1;
-                match outcome {
+                let event = match outcome {
                     Ok(()) => {
                         let failed = out.failed();
                         if failed {
                             result.failed.push(out.id.clone());
                         }
                         result.processed.push(out.id.clone());
-                        on_event(Event::CaseDone {
+                        Event::CaseDone {
                             id: out.id.clone(),
                             failed,
                             skipped: false,
@@ -339,17 +338,22 @@ pub fn run(
                             } else {
                                 Vec::new()
                             },
-                        });
+                        }
                     }
                     Err(e) => {
                         result.failed.push(out.id.clone());
-                        on_event(Event::WriteFailed {
+                        Event::WriteFailed {
                             id: out.id.clone(),
                             error: e.to_string(),
                             disk_full: e.is_disk_full(),
-                        });
+                        }
                     }
-                }
+                };
+                // The case's memory is freed before its share of the budget is: otherwise the
+                // next case loads while this one's outputs are still held.
+                drop(out);
+                budget.release(size);
+                on_event(event);
             }
         }
     }
