@@ -482,7 +482,7 @@ fn a_cohort_of_large_cases_stays_within_the_memory_budget() {
             "[input]\nroots = [\"cases\"]\ncase_depth = 1\n[output]\nroot = \"out\"\nformats = [\"ply\", \"stl\"]\n[run]\nworkers = 2\nmemory_budget_mb = {budget_mb}\n[defaults]\nmethod = \"hc\"\n"
         ),
     );
-    let (rss_kb, code) = peak_rss_kb(&["run", c.to_str().unwrap()]);
+    let (rss_kb, code) = peak_rss_kb(&["run", c.to_str().unwrap()], &[]);
     assert_eq!(code, Some(0));
     eprintln!(
         "4 cases of {input_mb:.1} MB, budget {budget_mb} MB: peak RSS {} MB",

@@ -119,12 +119,13 @@ pub fn smooth(input: &Path, output: &Path, method: &str, extra: &[&str]) -> Outp
     destair(&args)
 }
 
-/// Peak resident memory (kB) and exit code of a child run, from wait4's rusage (which also
-/// reaps it).
+/// Peak resident memory (kB) and exit code of a child run with extra environment variables,
+/// from wait4's rusage (which also reaps it).
 #[allow(clippy::zombie_processes)]
-pub fn peak_rss_kb(args: &[&str]) -> (i64, Option<i32>) {
+pub fn peak_rss_kb(args: &[&str], envs: &[(&str, &str)]) -> (i64, Option<i32>) {
     let child = Command::new(env!("CARGO_BIN_EXE_destair"))
         .args(args)
+        .envs(envs.iter().copied())
         .stderr(std::process::Stdio::null())
         .spawn()
         .unwrap();
