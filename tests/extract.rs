@@ -240,7 +240,7 @@ fn surfaces_sit_where_the_affine_puts_them_with_the_voxels_volume() {
             let map = read_label_map(&path, space).unwrap();
             let v = &map.layers[0];
             let all = interfaces(v);
-            let voxel_mm3 = destair::extract::report::voxel_volume(&v.grid);
+            let voxel_mm3 = v.grid.voxel_volume();
             let inv = inverse(&v.grid.matrix);
             for s in label_surfaces(v, &all) {
                 let label = &v.labels[s.label as usize - 1];

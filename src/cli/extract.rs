@@ -1,8 +1,7 @@
 //! `destair extract`: one surface per label of a label map, all extracted at once so that
 //! touching structures share their interface, plus `extract.json`.
 
-use super::{LabelMapInputError, UsageError};
-use destair::volume::Space;
+use super::{LabelMapInputError, SpaceArg, UsageError};
 use std::path::PathBuf;
 
 #[derive(clap::Args)]
@@ -21,12 +20,6 @@ pub struct Args {
     /// Mesh format: ply or stl.
     #[arg(long, value_enum, default_value_t = FormatArg::Ply)]
     format: FormatArg,
-}
-
-#[derive(Clone, Copy, clap::ValueEnum)]
-enum SpaceArg {
-    Lps,
-    Ras,
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -79,10 +72,7 @@ fn file_stem(name: &str) -> String {
 }
 
 pub fn exec(args: Args) -> anyhow::Result<()> {
-    let space = match args.space {
-        SpaceArg::Lps => Space::Lps,
-        SpaceArg::Ras => Space::Ras,
-    };
+    let space = args.space.space();
     if args.out.exists() && !args.out.is_dir() {
         return Err(UsageError(format!(
             "{}: exists and is not a folder",

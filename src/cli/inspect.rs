@@ -1,6 +1,6 @@
 //! `destair inspect`: what a mesh file holds, and optionally its context analysis.
 
-use super::{read_input, refuse_overwriting_inputs, ContextArgs};
+use super::{read_input, refuse_overwriting_inputs, ContextArgs, SpaceArg};
 use destair::io::{ReadMode, ReadOptions};
 use std::path::PathBuf;
 
@@ -28,12 +28,6 @@ pub struct Args {
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
-enum SpaceArg {
-    Lps,
-    Ras,
-}
-
-#[derive(Clone, Copy, clap::ValueEnum)]
 enum ModeArg {
     Mmap,
     Read,
@@ -51,10 +45,7 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     } = args;
     ctx.check()?;
     if destair::volume::is_label_map(&mesh) {
-        let space = match space {
-            SpaceArg::Lps => destair::volume::Space::Lps,
-            SpaceArg::Ras => destair::volume::Space::Ras,
-        };
+        let space = space.space();
         let map =
             destair::volume::read_label_map(&mesh, space).map_err(super::LabelMapInputError)?;
         let report =

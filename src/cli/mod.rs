@@ -197,6 +197,22 @@ fn parse_scaling(s: &str) -> Result<destair::weights::DistanceScaling, String> {
     s.parse()
 }
 
+/// World convention of label-map coordinates on the command line.
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum SpaceArg {
+    Lps,
+    Ras,
+}
+
+impl SpaceArg {
+    pub fn space(self) -> destair::volume::Space {
+        match self {
+            SpaceArg::Lps => destair::volume::Space::Lps,
+            SpaceArg::Ras => destair::volume::Space::Ras,
+        }
+    }
+}
+
 #[derive(Clone, Copy, clap::ValueEnum)]
 pub enum CapsArg {
     Preserve,

@@ -36,15 +36,6 @@ pub struct ExtractReport {
     pub warnings: Vec<String>,
 }
 
-/// Volume of one voxel of `grid` (mm³).
-pub fn voxel_volume(grid: &Grid) -> f64 {
-    let m = grid.matrix;
-    (m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
-        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]))
-        .abs()
-}
-
 /// The row of one extracted label.
 pub fn extracted_label(
     layer: usize,
@@ -60,7 +51,7 @@ pub fn extracted_label(
         name: label.name.clone(),
         file,
         n_voxels: label.n_voxels,
-        voxel_volume_mm3: label.n_voxels as f64 * voxel_volume(grid),
+        voxel_volume_mm3: label.n_voxels as f64 * grid.voxel_volume(),
         mesh_volume_mm3: signed_volume(mesh),
         n_vertices: mesh.n_vertices(),
         n_triangles: mesh.n_triangles(),

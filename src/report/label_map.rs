@@ -37,11 +37,7 @@ pub struct LabelMapReport {
 pub fn label_map_report(path: &str, map: &LabelMap) -> LabelMapReport {
     let first = &map.layers[0];
     let g = first.grid;
-    let m = g.matrix;
-    let voxel_mm3 = (m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
-        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]))
-        .abs();
+    let voxel_mm3 = g.voxel_volume();
     let labels = map
         .layers
         .iter()

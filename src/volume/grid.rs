@@ -139,6 +139,11 @@ impl Grid {
         [d[0][k], d[1][k], d[2][k]]
     }
 
+    /// Volume of one voxel (mm³).
+    pub fn voxel_volume(&self) -> f64 {
+        det3(&self.matrix).abs()
+    }
+
     /// The 4 x 4 affine, row by row, for reports.
     pub fn affine(&self) -> [[f64; 4]; 4] {
         let m = &self.matrix;
@@ -173,7 +178,8 @@ pub fn quaternion_rotation(a: f64, b: f64, c: f64, d: f64) -> [[f64; 3]; 3] {
     ]
 }
 
-fn det3(m: &[[f64; 3]; 3]) -> f64 {
+/// Determinant of a 3 x 3 matrix.
+pub fn det3(m: &[[f64; 3]; 3]) -> f64 {
     m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
         - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
         + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])

@@ -217,9 +217,7 @@ pub fn encode(volume: &LabelVolume, gz: bool) -> Result<Vec<u8>, String> {
     put(&mut h, 72, &bits.to_le_bytes());
     let spacing = g.spacing();
     let dir = g.directions();
-    let det = dir[0][0] * (dir[1][1] * dir[2][2] - dir[1][2] * dir[2][1])
-        - dir[0][1] * (dir[1][0] * dir[2][2] - dir[1][2] * dir[2][0])
-        + dir[0][2] * (dir[1][0] * dir[2][1] - dir[1][1] * dir[2][0]);
+    let det = super::grid::det3(&dir);
     let qfac: f32 = if det < 0.0 { -1.0 } else { 1.0 };
     let pixdim = [
         qfac,
