@@ -97,7 +97,10 @@ fn random_volume(
         d + (1.0 - c) * axis[r] * axis[k] + s * cross[r][k]
     };
     let spacing = [0.7, 0.9, 2.5];
-    let matrix = std::array::from_fn(|r| std::array::from_fn(|k| rot(r, k) * spacing[k]));
+    // Half the grids mirror one axis (a negative determinant, as NIfTI's qfac = -1 gives).
+    let mirror = if rng.bool() { -1.0 } else { 1.0 };
+    let sign = |k: usize| if k == 0 { mirror } else { 1.0 };
+    let matrix = std::array::from_fn(|r| std::array::from_fn(|k| rot(r, k) * spacing[k] * sign(k)));
     let grid = Grid {
         matrix,
         origin: [1.0, -2.0, 3.0],

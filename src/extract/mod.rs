@@ -222,6 +222,31 @@ fn dedup_sorted(a: &mut [u16; 8]) -> usize {
 /// One closed surface per label (normals outward, vertices in world mm through the volume's
 /// grid), made of the shared interface triangles; labels are assembled in parallel.
 pub fn label_surfaces(volume: &LabelVolume, all: &Interfaces) -> Vec<LabelSurface> {
+    let grid = volume.grid;
+    // A grid that mirrors (negative determinant, e.g. NIfTI's qfac = -1) turns every triangle
+    // inside out in world space; swapping two corners turns it back.
+    let mirrored = crate::volume::grid::det3(&grid.matrix) < 0.0;
+    assemble(volume, all, |p| grid.world(p), mirrored)
+}
+
+/// [`label_surfaces`] in the grid's own frame (index times spacing, mm; see
+/// [`GridFrame`](crate::volume::grid::GridFrame)): grid axes are the coordinate axes there.
+pub fn label_surfaces_in_frame(volume: &LabelVolume, all: &Interfaces) -> Vec<LabelSurface> {
+    let s = volume.grid.spacing();
+    assemble(
+        volume,
+        all,
+        |p| [p[0] * s[0], p[1] * s[1], p[2] * s[2]],
+        false,
+    )
+}
+
+fn assemble(
+    volume: &LabelVolume,
+    all: &Interfaces,
+    to_mm: impl Fn([f64; 3]) -> [f64; 3] + Sync,
+    mirrored: bool,
+) -> Vec<LabelSurface> {
     use rayon::prelude::*;
     let n_labels = volume.labels.len();
     // Each triangle goes to the labels on its two sides (background has no surface).
@@ -244,15 +269,15 @@ pub fn label_surfaces(volume: &LabelVolume, all: &Interfaces) -> Vec<LabelSurfac
                 } else {
                     [tri[0], all.outer_apex[t as usize], tri[1]]
                 };
+                let tri = if mirrored {
+                    [tri[0], tri[2], tri[1]]
+                } else {
+                    tri
+                };
                 triangles.push(tri.map(|v| {
                     if local[v as usize] == u32::MAX {
                         local[v as usize] = positions.len() as u32;
-                        positions.push(
-                            volume
-                                .grid
-                                .world(all.positions[v as usize])
-                                .map(|x| x as f32),
-                        );
+                        positions.push(to_mm(all.positions[v as usize]).map(|x| x as f32));
                     }
                     local[v as usize]
                 }));

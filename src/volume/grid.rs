@@ -133,8 +133,7 @@ impl Grid {
     /// The slice normal: the world direction across the slices, taken as the index axis with
     /// the largest spacing (the thick-slice axis), in unit length.
     pub fn stack_axis(&self) -> [f64; 3] {
-        let s = self.spacing();
-        let k = (0..3).fold(2, |best, c| if s[c] > s[best] { c } else { best });
+        let k = self.stack_index_axis();
         let d = self.directions();
         [d[0][k], d[1][k], d[2][k]]
     }
@@ -154,6 +153,69 @@ impl Grid {
             [m[2][0], m[2][1], m[2][2], o[2]],
             [0.0, 0.0, 0.0, 1.0],
         ]
+    }
+}
+
+/// A grid's own frame: millimetres along the grid axes from voxel (0, 0, 0), i.e. index times
+/// spacing. It differs from world mm by a rigid motion (rotation, possibly a mirror, and the
+/// origin), so distances, volumes and curvature are the same in both, while a voxel is an
+/// axis-aligned box and the stack axis a coordinate axis: grid-aware smoothing holds exactly for
+/// oblique acquisitions there.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct GridFrame {
+    /// Unit grid directions as columns (world = rotation * frame + origin).
+    pub rotation: [[f64; 3]; 3],
+    pub origin: [f64; 3],
+}
+
+impl GridFrame {
+    /// World mm of a point in the frame.
+    pub fn to_world(&self, p: [f64; 3]) -> [f64; 3] {
+        let r = &self.rotation;
+        [0, 1, 2].map(|i| self.origin[i] + r[i][0] * p[0] + r[i][1] * p[1] + r[i][2] * p[2])
+    }
+
+    /// The frame's coordinates of a world point.
+    pub fn to_frame(&self, w: [f64; 3]) -> [f64; 3] {
+        let d = [0, 1, 2].map(|i| w[i] - self.origin[i]);
+        self.direction_to_frame(d)
+    }
+
+    /// A world direction (or offset) in the frame.
+    pub fn direction_to_frame(&self, d: [f64; 3]) -> [f64; 3] {
+        let r = &self.rotation;
+        [0, 1, 2].map(|c| r[0][c] * d[0] + r[1][c] * d[1] + r[2][c] * d[2])
+    }
+
+    /// A frame direction in world.
+    pub fn direction_to_world(&self, d: [f64; 3]) -> [f64; 3] {
+        let r = &self.rotation;
+        [0, 1, 2].map(|i| r[i][0] * d[0] + r[i][1] * d[1] + r[i][2] * d[2])
+    }
+
+    /// Whether the frame mirrors world (orientation of triangles flips between them).
+    pub fn mirrored(&self) -> bool {
+        det3(&self.rotation) < 0.0
+    }
+}
+
+impl Grid {
+    /// The grid's own frame, or `None` when its axes are not perpendicular (a sheared grid,
+    /// where no rigid motion makes voxels axis-aligned boxes).
+    pub fn frame(&self) -> Option<GridFrame> {
+        let d = self.directions();
+        let dot = |a: usize, b: usize| (0..3).map(|r| d[r][a] * d[r][b]).sum::<f64>();
+        let orthogonal = dot(0, 1).abs() < 1e-5 && dot(0, 2).abs() < 1e-5 && dot(1, 2).abs() < 1e-5;
+        orthogonal.then_some(GridFrame {
+            rotation: d,
+            origin: self.origin,
+        })
+    }
+
+    /// Index of the stack axis (largest spacing; the last axis, the slice axis, on ties).
+    pub fn stack_index_axis(&self) -> usize {
+        let s = self.spacing();
+        (0..3).fold(2, |best, c| if s[c] > s[best] { c } else { best })
     }
 }
 

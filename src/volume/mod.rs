@@ -242,6 +242,8 @@ pub struct LabelMap {
     pub layers: Vec<LabelVolume>,
     pub segments: Vec<Segment>,
     pub warnings: Vec<String>,
+    /// The detached data file a `.nhdr` names, when there is one (its bytes are input too).
+    pub data_file: Option<PathBuf>,
 }
 
 /// A label map that could not be read, with its path.
@@ -295,6 +297,19 @@ pub fn read_label_map(path: &Path, space: Space) -> Result<LabelMap, LabelMapErr
         }
     }
     Ok(map)
+}
+
+/// Voxels the file's header declares (all layers), read from the header alone: for estimating
+/// memory before the volume is read. `None` when the header cannot be read (the read will say why).
+pub fn declared_voxels(path: &Path) -> Option<u64> {
+    let name = path.file_name()?.to_string_lossy().to_ascii_lowercase();
+    if name.ends_with(".nii") || name.ends_with(".nii.gz") {
+        nifti::declared_voxels(path, name.ends_with(".gz"))
+    } else if name.ends_with(".nrrd") || name.ends_with(".nhdr") {
+        nrrd::declared_voxels(path)
+    } else {
+        None
+    }
 }
 
 /// The `n` bytes of voxels at `offset`, or what the header claims against what there is.

@@ -93,6 +93,28 @@ pub fn read(path: &Path) -> Result<LabelMap, String> {
     }
 }
 
+/// Voxels the header declares (see [`super::declared_voxels`]).
+pub(super) fn declared_voxels(path: &Path, gz: bool) -> Option<u64> {
+    use std::io::Read;
+    let file = std::fs::File::open(path).ok()?;
+    let mut head = Vec::with_capacity(HEADER);
+    if gz {
+        flate2::read::MultiGzDecoder::new(file)
+            .take(HEADER as u64)
+            .read_to_end(&mut head)
+            .ok()?;
+    } else {
+        file.take(HEADER as u64).read_to_end(&mut head).ok()?;
+    }
+    let (h, _, _) = header(&head).ok()?;
+    let n_dims = h.dim[0] as usize;
+    Some(
+        (1..=3)
+            .map(|k| if k <= n_dims { h.dim[k] as u64 } else { 1 })
+            .product(),
+    )
+}
+
 /// Parses and checks the header: (header, voxel offset, voxel bytes).
 fn header(bytes: &[u8]) -> Result<(nifti::NiftiHeader, u64, u64), String> {
     if bytes.len() < HEADER {
@@ -164,6 +186,7 @@ fn decode(h: &nifti::NiftiHeader, data: &[u8]) -> Result<LabelMap, String> {
         layers: vec![volume],
         segments: Vec::new(),
         warnings: warning.into_iter().collect(),
+        data_file: None,
     })
 }
 

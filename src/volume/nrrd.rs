@@ -214,6 +214,7 @@ pub fn read(path: &Path) -> Result<LabelMap, String> {
     }
     // The data: after the header, or in a detached file next to it.
     let detached;
+    let mut data_file = None;
     let data: &[u8] = match fields.get("data file").or_else(|| fields.get("datafile")) {
         Some(name) => {
             if name.starts_with("LIST") || name.contains('%') {
@@ -225,6 +226,7 @@ pub fn read(path: &Path) -> Result<LabelMap, String> {
             crate::io::check_regular_file(&p)
                 .map_err(|e| format!("data file {}: {e}", p.display()))?;
             detached = std::fs::read(&p).map_err(|e| format!("data file {}: {e}", p.display()))?;
+            data_file = Some(p);
             &detached
         }
         None => &bytes[data_start..],
@@ -255,7 +257,28 @@ pub fn read(path: &Path) -> Result<LabelMap, String> {
         layers,
         segments,
         warnings,
+        data_file,
     })
+}
+
+/// Voxels the header declares, all layers (see [`super::declared_voxels`]).
+pub(super) fn declared_voxels(path: &Path) -> Option<u64> {
+    use std::io::Read;
+    let mut head = Vec::new();
+    std::fs::File::open(path)
+        .ok()?
+        .take(MAX_HEADER as u64)
+        .read_to_end(&mut head)
+        .ok()?;
+    let end = find_blank_line(&head).map_or(head.len(), |(e, _)| e);
+    let text = String::from_utf8_lossy(&head[..end]);
+    let sizes = text
+        .lines()
+        .find_map(|l| l.trim_end_matches('\r').strip_prefix("sizes:"))?;
+    sizes
+        .split_whitespace()
+        .map(|s| s.parse::<u64>().ok())
+        .try_fold(1u64, |n, s| n.checked_mul(s?))
 }
 
 /// (end of the header text, start of the data): the first empty line.
