@@ -27,16 +27,27 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         ))
         .into());
     }
-    let names: std::collections::BTreeSet<&str> = found
+    let mut names: std::collections::BTreeSet<&str> = found
         .cases
         .iter()
         .flat_map(|c| c.meshes.iter().map(|(n, _)| n.as_str()))
         .collect();
+    let n_label_maps: usize = found.cases.iter().map(|c| c.label_maps.len()).sum();
+    if n_label_maps > 0 {
+        names.extend(plan.label_names.values().map(String::as_str));
+    }
     println!(
-        "{}: valid; {} cases, {} structure names; output to {}",
+        "{}: valid; {} cases, {} structure names{}; output to {}",
         args.config.display(),
         found.cases.len(),
         names.len(),
+        if n_label_maps > 0 {
+            format!(
+                " (from mesh files and [labels]; {n_label_maps} label maps name the rest of their structures when read)"
+            )
+        } else {
+            String::new()
+        },
         plan.output_root.display()
     );
     for n in names {

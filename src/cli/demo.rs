@@ -9,7 +9,7 @@ pub struct Args {
     /// Folder for the demo (cases/, demo.toml, out/).
     #[arg(default_value = "destair-demo")]
     dir: PathBuf,
-    /// Number of cases.
+    /// Number of mesh cases (one label-map case is added).
     #[arg(long, default_value_t = 6)]
     cases: usize,
 }
@@ -20,12 +20,22 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         let case = destair::phantom::cohort_case(i, 0);
         destair::phantom::write_case(&case, &cases_dir.join(&case.info.name))?;
     }
+    // One case arrives as a segmentation instead: an oblique NIfTI label map.
+    let options = destair::phantom::PhantomOptions {
+        rotate_x_deg: 20.0,
+        ..Default::default()
+    };
+    destair::phantom::cases::write_label_map_case(
+        "labelmap-neck",
+        &options,
+        &cases_dir.join("case-labelmap"),
+    )?;
     let config = args.dir.join("demo.toml");
     destair::io::write_atomically(&config, |w| {
         w.write_all(include_str!("../../config/demo.toml").as_bytes())
     })?;
     eprintln!(
-        "[{}] demo cohort of {} cases in {}; running {}",
+        "[{}] demo cohort of {} mesh cases and 1 label-map case in {}; running {}",
         clock(),
         args.cases,
         cases_dir.display(),

@@ -20,6 +20,11 @@ pub struct Args {
     /// Mesh format: ply or stl.
     #[arg(long, value_enum, default_value_t = FormatArg::Ply)]
     format: FormatArg,
+    /// Also write all interfaces as one PLY with per-face `inner_label` and `outer_label` (the
+    /// label values on the two sides; 0 is background), as tetrahedral meshers with regions
+    /// take. Further layers of a .seg.nrrd go to FILE_layerN.ply.
+    #[arg(long, value_name = "FILE.ply")]
+    combined: Option<PathBuf>,
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -146,6 +151,47 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         }
     }
     let extract_s = t_extract.elapsed().as_secs_f64();
+    if let Some(path) = &args.combined {
+        for (layer_index, layer) in map.layers.iter().enumerate() {
+            let path = if layer_index == 0 {
+                path.clone()
+            } else {
+                let stem = path.file_stem().unwrap_or_default().to_string_lossy();
+                path.with_file_name(format!("{stem}_layer{layer_index}.ply"))
+            };
+            super::refuse_overwriting_inputs(&path, &[args.labelmap.as_path()], false)?;
+            let all = destair::extract::interfaces(layer);
+            let (mesh, sides) = destair::extract::combined_surface(layer, &all);
+            let int = |v: i64| {
+                i32::try_from(v).map_err(|_| {
+                    UsageError(format!(
+                        "{}: label value {v} does not fit the combined PLY's int face property",
+                        args.labelmap.display()
+                    ))
+                })
+            };
+            let inner = sides
+                .iter()
+                .map(|s| int(s[0]))
+                .collect::<Result<Vec<_>, _>>()?;
+            let outer = sides
+                .iter()
+                .map(|s| int(s[1]))
+                .collect::<Result<Vec<_>, _>>()?;
+            destair::io::ply::write_ply_with_faces(
+                &path,
+                &mesh,
+                &meta,
+                &[],
+                &[("inner_label", &inner), ("outer_label", &outer)],
+            )?;
+            println!(
+                "{}: {} interface triangles of layer {layer_index}",
+                path.display(),
+                mesh.n_triangles()
+            );
+        }
+    }
     let g = map.layers[0].grid;
     let report = destair::extract::report::ExtractReport {
         source: args.labelmap.display().to_string(),

@@ -47,10 +47,18 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         .filter(|c| shard.is_none_or(|s| s.contains(&c.id)))
     {
         let structures: Vec<&str> = c.meshes.iter().map(|(n, _)| n.as_str()).collect();
+        let label_maps: Vec<String> = c
+            .label_maps
+            .iter()
+            .map(|p| {
+                p.file_name()
+                    .map_or_else(String::new, |f| f.to_string_lossy().into_owned())
+            })
+            .collect();
         if args.jsonl {
             println!(
                 "{}",
-                serde_json::json!({ "case": c.id, "dir": c.dir, "structures": structures })
+                serde_json::json!({ "case": c.id, "dir": c.dir, "structures": structures, "label_maps": label_maps })
             );
         } else {
             // Structure names are joined by commas; a comma inside a name is escaped as `\,`.

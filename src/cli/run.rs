@@ -239,7 +239,7 @@ pub fn exec_case(args: CaseArgs) -> anyhow::Result<()> {
     let case = destair::job::discover::case_at(&plan, &dir, name.clone(), &mut warnings)
         .ok_or_else(|| {
             UsageError(format!(
-                "{}: no meshes in this folder",
+                "{}: no meshes or label maps in this folder",
                 args.case_dir.display()
             ))
         })?;

@@ -241,6 +241,44 @@ pub fn label_surfaces_in_frame(volume: &LabelVolume, all: &Interfaces) -> Vec<La
     )
 }
 
+/// All interfaces as one mesh in world mm (non-manifold where three labels meet), with the
+/// label values on the two sides of each triangle: (inner, outer), the normal pointing from
+/// inner to outer, 0 for background. This is what tetrahedral meshers with regions take.
+pub fn combined_surface(volume: &LabelVolume, all: &Interfaces) -> (Mesh, Vec<[i64; 2]>) {
+    let grid = volume.grid;
+    let mirrored = crate::volume::grid::det3(&grid.matrix) < 0.0;
+    let mut local = vec![u32::MAX; all.positions.len()];
+    let mut positions = Vec::new();
+    let mut triangles = Vec::with_capacity(all.triangles.len());
+    for tri in &all.triangles {
+        let tri = if mirrored {
+            [tri[0], tri[2], tri[1]]
+        } else {
+            *tri
+        };
+        triangles.push(tri.map(|v| {
+            if local[v as usize] == u32::MAX {
+                local[v as usize] = positions.len() as u32;
+                positions.push(grid.world(all.positions[v as usize]).map(|x| x as f32));
+            }
+            local[v as usize]
+        }));
+    }
+    let value = |l: u16| {
+        if l == 0 {
+            0
+        } else {
+            volume.labels[l as usize - 1].value
+        }
+    };
+    let sides = all
+        .sides
+        .iter()
+        .map(|s| [value(s[0]), value(s[1])])
+        .collect();
+    (Mesh::new(positions, triangles).unwrap_or_default(), sides)
+}
+
 fn assemble(
     volume: &LabelVolume,
     all: &Interfaces,

@@ -49,6 +49,8 @@ pub enum SourceFormat {
     StlBinary,
     StlAscii,
     Obj,
+    /// Not read from a mesh file: extracted from a label map.
+    Extracted,
 }
 
 impl std::fmt::Display for SourceFormat {
@@ -60,6 +62,7 @@ impl std::fmt::Display for SourceFormat {
             SourceFormat::StlBinary => "STL binary",
             SourceFormat::StlAscii => "STL ASCII",
             SourceFormat::Obj => "OBJ",
+            SourceFormat::Extracted => "extracted from a label map",
         })
     }
 }

@@ -4,6 +4,9 @@
 //! A failing structure is recorded in the report; it never stops the case or the cohort.
 
 use super::discover::CaseInput;
+use super::label_map::{
+    header_geometry, label_structures, load_label_map, LabelSource, LoadedLabelMap, Place,
+};
 use super::plan::{Plan, StructureSettings};
 use crate::io::{decode_mesh, extension, with_file_bytes, LoadedMesh, OutputFormat, ReadOptions};
 use crate::mesh::{Mesh, Topology};
@@ -12,7 +15,7 @@ use crate::report::compare::compare_prepared;
 use crate::report::inspect::context_summary;
 use crate::smooth::{boundary_vertices, smooth};
 use crate::spatial::TriangleGrid;
-use crate::weights::context_weights;
+use crate::weights::{context_weights, AxisChoice};
 use std::collections::BTreeMap;
 use std::time::Instant;
 
@@ -24,6 +27,10 @@ pub struct LoadedFile {
     pub bytes: u64,
     pub blake3: String,
     pub mesh: Result<LoadedMesh, String>,
+    /// Where the mesh's coordinates live (world, or a label map grid's frame).
+    pub place: Place,
+    /// The label map and label the structure was extracted from.
+    pub source: Option<LabelSource>,
 }
 
 /// A case with its files in memory.
@@ -31,6 +38,8 @@ pub struct LoadedFile {
 pub struct LoadedCase {
     pub input: CaseInput,
     pub files: Vec<LoadedFile>,
+    /// The case's label maps, read (their labels become structures when the case is processed).
+    pub label_maps: Vec<LoadedLabelMap>,
     /// Key for resuming: the plan's output fingerprint for these structures and the input hashes.
     pub key: String,
 }
@@ -82,6 +91,8 @@ pub fn load_case(plan: &Plan, input: CaseInput) -> LoadedCase {
                     bytes,
                     blake3,
                     mesh: mesh.map_err(|e| format!("{}: {e}", plan.display(path))),
+                    place: Place::World,
+                    source: None,
                 },
                 Err(e) => LoadedFile {
                     structure: structure.clone(),
@@ -89,15 +100,32 @@ pub fn load_case(plan: &Plan, input: CaseInput) -> LoadedCase {
                     bytes: 0,
                     blake3: String::new(),
                     mesh: Err(format!("{}: cannot read: {e}", plan.display(path))),
+                    place: Place::World,
+                    source: None,
                 },
             }
         })
         .collect();
-    let key = resume_key(plan, &input, &files);
-    LoadedCase { input, files, key }
+    let label_maps: Vec<LoadedLabelMap> = input
+        .label_maps
+        .iter()
+        .map(|p| load_label_map(plan, p))
+        .collect();
+    let key = resume_key(plan, &input, &files, &label_maps);
+    LoadedCase {
+        input,
+        files,
+        label_maps,
+        key,
+    }
 }
 
-fn resume_key(plan: &Plan, input: &CaseInput, files: &[LoadedFile]) -> String {
+fn resume_key(
+    plan: &Plan,
+    input: &CaseInput,
+    files: &[LoadedFile],
+    label_maps: &[LoadedLabelMap],
+) -> String {
     let settings: Vec<(String, StructureSettings)> = input
         .meshes
         .iter()
@@ -110,6 +138,16 @@ fn resume_key(plan: &Plan, input: &CaseInput, files: &[LoadedFile]) -> String {
         h.update(&[0]);
         h.update(f.blake3.as_bytes());
         h.update(&[0]);
+    }
+    if !label_maps.is_empty() {
+        // Structure names come from the files, so every settings table may apply to them.
+        h.update(plan.settings_fingerprint().as_bytes());
+        for m in label_maps {
+            h.update(m.file.as_bytes());
+            h.update(&[0]);
+            h.update(m.blake3.as_bytes());
+            h.update(&[0]);
+        }
     }
     h.finalize().to_hex().to_string()
 }
@@ -139,22 +177,73 @@ fn encode(
 /// Processes every structure of a loaded case.
 pub fn process_case(plan: &Plan, case: LoadedCase) -> CaseOutput {
     let started = Instant::now();
-    let by_name: BTreeMap<&str, &LoadedFile> = case
-        .files
-        .iter()
-        .map(|f| (f.structure.as_str(), f))
-        .collect();
-    let mut grids: BTreeMap<String, TriangleGrid> = BTreeMap::new();
+    let mut grids: BTreeMap<(String, Option<usize>), TriangleGrid> = BTreeMap::new();
     let mut files = Vec::new();
     let mut structures = Vec::new();
     let mut timings = serde_json::Map::new();
+    let mut case_errors: Vec<String> = case.input.errors.clone();
+    let mut case_warnings: Vec<String> = case.input.problems.clone();
+    // Label maps: every label becomes a structure, beside the mesh files.
+    let mut label_map_infos = Vec::new();
+    let mut all: Vec<LoadedFile> = Vec::new();
+    if case_errors.is_empty() {
+        for (index, loaded) in case.label_maps.iter().enumerate() {
+            let map = match &loaded.map {
+                Ok(map) => map,
+                Err(e) => {
+                    case_errors.push(e.clone());
+                    continue;
+                }
+            };
+            let t0 = Instant::now();
+            let (structures, info) = label_structures(plan, index, loaded, map);
+            timings.insert(
+                format!("extract {}", loaded.file),
+                serde_json::json!(t0.elapsed().as_secs_f64()),
+            );
+            case_warnings.extend(info.warnings.iter().map(|w| format!("{}: {w}", info.file)));
+            label_map_infos.push(info);
+            for st in structures {
+                all.push(LoadedFile {
+                    structure: st.name,
+                    file: loaded.file.clone(),
+                    bytes: 0,
+                    blake3: String::new(),
+                    mesh: Ok(st.mesh),
+                    place: st.place,
+                    source: Some(st.source),
+                });
+            }
+        }
+    }
+    let mesh_inputs: Vec<InputInfo> = case
+        .files
+        .iter()
+        .map(|f| InputInfo {
+            structure: f.structure.clone(),
+            file: f.file.clone(),
+            bytes: f.bytes,
+            blake3: f.blake3.clone(),
+        })
+        .collect();
+    all.extend(case.files);
+    all.sort_by(|a, b| a.structure.cmp(&b.structure));
+    // A name given twice (a mesh file and a label, or two labels) is ambiguous: the case fails.
+    for pair in all.windows(2) {
+        if pair[0].structure == pair[1].structure {
+            case_errors.push(format!(
+                "structure {:?} comes from both {} and {}; rename one (a [labels] entry names labels)",
+                pair[0].structure,
+                origin(&pair[0]),
+                origin(&pair[1])
+            ));
+        }
+    }
+    let by_name: BTreeMap<&str, &LoadedFile> =
+        all.iter().map(|f| (f.structure.as_str(), f)).collect();
     // A case that cannot be processed as listed (unreadable folder, two files for a structure)
     // fails as a whole, without computing anything.
-    let inputs: &[LoadedFile] = if case.input.errors.is_empty() {
-        &case.files
-    } else {
-        &[]
-    };
+    let inputs: &[LoadedFile] = if case_errors.is_empty() { &all } else { &[] };
     for f in inputs {
         let t0 = Instant::now();
         let settings = plan.settings_for(&f.structure);
@@ -171,6 +260,7 @@ pub fn process_case(plan: &Plan, case: LoadedCase) -> CaseOutput {
             metrics: None,
             outputs: Vec::new(),
             warnings: Vec::new(),
+            source: f.source.clone(),
         };
         let stem = plan.output_stem(&case.input.id, &f.structure);
         match process_structure(plan, f, &stem, &settings, &by_name, &mut grids, &mut report) {
@@ -189,31 +279,27 @@ pub fn process_case(plan: &Plan, case: LoadedCase) -> CaseOutput {
         );
         structures.push(report);
     }
-    let mut errors: Vec<String> = case.input.errors.clone();
+    let mut errors = case_errors;
     errors.extend(
         structures
             .iter()
             .filter_map(|s| s.error.as_ref().map(|e| format!("{}: {e}", s.name))),
     );
-    if errors.is_empty() && case.files.is_empty() {
-        errors.push("the case holds no meshes".into());
+    if errors.is_empty() && all.is_empty() {
+        errors.push(if case.label_maps.is_empty() {
+            "the case holds no meshes".into()
+        } else {
+            "the case's label maps hold no labels (every voxel is background)".into()
+        });
     }
     let report = CaseReport {
         schema_version: SCHEMA_VERSION,
         case: case.input.id.clone(),
         status: if errors.is_empty() { "ok" } else { "failed" }.into(),
-        inputs: case
-            .files
-            .iter()
-            .map(|f| InputInfo {
-                structure: f.structure.clone(),
-                file: f.file.clone(),
-                bytes: f.bytes,
-                blake3: f.blake3.clone(),
-            })
-            .collect(),
+        inputs: mesh_inputs,
+        label_maps: label_map_infos,
         structures,
-        warnings: case.input.problems.clone(),
+        warnings: case_warnings,
         errors,
     };
     timings.insert(
@@ -229,6 +315,22 @@ pub fn process_case(plan: &Plan, case: LoadedCase) -> CaseOutput {
     }
 }
 
+/// Where a structure's file came from, for messages.
+fn origin(f: &LoadedFile) -> String {
+    match &f.source {
+        Some(s) => format!("label {} of {}", s.label, s.label_map),
+        None => f.file.clone(),
+    }
+}
+
+/// A mesh in world mm for writing: as it is, or moved out of its grid's frame.
+fn in_world<'a>(place: &Place, mesh: &'a Mesh) -> std::borrow::Cow<'a, Mesh> {
+    match place.mesh_in(mesh, &Place::World) {
+        Some(m) => std::borrow::Cow::Owned(m),
+        None => std::borrow::Cow::Borrowed(mesh),
+    }
+}
+
 #[allow(clippy::too_many_arguments)]
 fn process_structure(
     plan: &Plan,
@@ -236,11 +338,16 @@ fn process_structure(
     stem: &str,
     settings: &StructureSettings,
     case: &BTreeMap<&str, &LoadedFile>,
-    grids: &mut BTreeMap<String, TriangleGrid>,
+    grids: &mut BTreeMap<(String, Option<usize>), TriangleGrid>,
     report: &mut StructureReport,
 ) -> Result<Vec<(String, Vec<u8>)>, String> {
     let loaded = file.mesh.as_ref().map_err(|e| e.clone())?;
     let mesh = &loaded.mesh;
+    let place = file.place;
+    let frame_key = match place {
+        Place::Frame(i, _) => Some(i),
+        Place::World => None,
+    };
     report.n_vertices = mesh.n_vertices();
     report.n_triangles = mesh.n_triangles();
     report.warnings.extend(loaded.warnings.iter().cloned());
@@ -258,16 +365,47 @@ fn process_structure(
             .mesh
             .as_ref()
             .map_err(|e| format!("reference {r:?} could not be read: {e}"))?;
+        // References are measured in this structure's coordinates.
+        let rm = match rf.place.mesh_in(&rm.mesh, &place) {
+            Some(m) => std::borrow::Cow::Owned(m),
+            None => std::borrow::Cow::Borrowed(&rm.mesh),
+        };
         reference_meshes.push((r.clone(), rm));
     }
     if settings.skip {
         report.status = "skipped".into();
-        return encode(plan, stem, mesh, loaded, &[]);
+        return encode(plan, stem, &in_world(&place, mesh), loaded, &[]);
     }
     let topology = Topology::build(mesh);
+    let header = file
+        .source
+        .as_ref()
+        .and_then(|s| header_geometry(&place, s));
+    let mut context_params = settings.context.clone();
+    if let Some((_, axis)) = header {
+        context_params.axis = match settings.context.axis {
+            AxisChoice::Auto => AxisChoice::Given(axis),
+            // A configured axis is a world direction.
+            AxisChoice::Given(a) => AxisChoice::Given(
+                place
+                    .direction_from_world(a.map(f64::from))
+                    .map(|x| x as f32),
+            ),
+        };
+    }
     let estimate = crate::analysis::voxel_size(mesh, &topology);
-    let voxel = match settings.voxel {
-        Some(v) => {
+    let voxel = match (header, settings.voxel) {
+        (Some((v, _)), configured) => {
+            if let Some(c) = configured {
+                if (0..3).any(|k| (c[k] - v[k]).abs() > 1e-3 * v[k]) {
+                    report.warnings.push(format!(
+                        "the configured voxel {c:?} mm is not used: the label map's header gives {v:?} mm along its grid axes"
+                    ));
+                }
+            }
+            Some(v)
+        }
+        (None, Some(v)) => {
             if settings.method.needs_voxel() && estimate.is_irregular() {
                 report.warnings.push(format!(
                     "the configured voxel size is used, but the mesh's voxel size is {}; {} constrains along grid axes this mesh may not follow",
@@ -277,7 +415,7 @@ fn process_structure(
             }
             Some(v)
         }
-        None => estimate.spacing().map(|s| s.map(|x| x as f32)),
+        (None, None) => estimate.spacing().map(|s| s.map(|x| x as f32)),
     };
     if settings.method.needs_voxel() && voxel.is_none() {
         return Err(format!(
@@ -290,16 +428,15 @@ fn process_structure(
         .method
         .build(&settings.params, voxel.unwrap_or([1.0; 3]));
     for (name, rm) in &reference_meshes {
-        if !grids.contains_key(name) {
-            grids.insert(name.clone(), TriangleGrid::build(&rm.mesh));
-        }
+        let key = (name.clone(), frame_key);
+        grids.entry(key).or_insert_with(|| TriangleGrid::build(rm));
     }
     let refs: Vec<&TriangleGrid> = settings
         .references
         .iter()
-        .filter_map(|r| grids.get(r))
+        .filter_map(|r| grids.get(&(r.clone(), frame_key)))
         .collect();
-    let ctx = context_weights(mesh, &topology, &settings.context, &refs);
+    let ctx = context_weights(mesh, &topology, &context_params, &refs);
     let fixed = if settings.move_boundary {
         vec![false; mesh.n_vertices()]
     } else {
@@ -313,7 +450,19 @@ fn process_structure(
         &ctx.weights,
         &fixed,
     );
-    report.context = Some(context_summary(&ctx, mesh.n_vertices()));
+    let mut summary = context_summary(&ctx, mesh.n_vertices());
+    if header.is_some() {
+        // Directions as the world sees them; the axis came from the header.
+        let world = |d: [f32; 3]| place.direction_to_world(d.map(f64::from)).map(|x| x as f32);
+        summary.axis = summary.axis.map(world);
+        for cap in &mut summary.caps {
+            cap.normal = world(cap.normal);
+        }
+        if matches!(settings.context.axis, AxisChoice::Auto) && summary.axis.is_some() {
+            summary.axis_source = "label_map_header".into();
+        }
+    }
+    report.context = Some(summary);
     report.method = Some(method);
     report.smooth = Some(stats);
     crate::smooth::check_result(
@@ -326,7 +475,11 @@ fn process_structure(
     smoothed.positions_mut().copy_from_slice(&positions);
     let named_refs: Vec<(&str, &Mesh, &TriangleGrid)> = reference_meshes
         .iter()
-        .filter_map(|(n, m)| grids.get(n).map(|g| (n.as_str(), &m.mesh, g)))
+        .filter_map(|(n, m)| {
+            grids
+                .get(&(n.clone(), frame_key))
+                .map(|g| (n.as_str(), m.as_ref(), g))
+        })
         .collect();
     let metrics = compare_prepared(
         mesh,
@@ -348,7 +501,7 @@ fn process_structure(
     } else {
         Vec::new()
     };
-    let out = encode(plan, stem, &smoothed, loaded, &props)?;
+    let out = encode(plan, stem, &in_world(&place, &smoothed), loaded, &props)?;
     report.status = "ok".into();
     Ok(out)
 }

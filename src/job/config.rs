@@ -46,6 +46,10 @@ pub struct InputConfig {
     /// Which file to take when a structure has several (`tumor.ply`, `tumor.stl`): the first
     /// extension in this list. Without it such a case fails.
     pub extension_order: Option<Vec<String>>,
+    /// Globs on file names that select label maps (segmentations whose labels become the
+    /// case's structures). Default: every .nii, .nii.gz, .nrrd, .seg.nrrd and .nhdr file;
+    /// `[]` reads none. Narrow it when case folders also hold images (`["*seg*.nii.gz"]`).
+    pub label_maps: Option<Vec<String>>,
 }
 
 fn default_extensions() -> Vec<String> {
@@ -67,6 +71,9 @@ pub struct OutputConfig {
     /// Output mesh file name without extension; `{structure}` and `{case}` are replaced.
     #[serde(default = "default_naming")]
     pub naming: String,
+    /// World convention of surfaces made from label maps: "lps" (3D Slicer's, the default) or
+    /// "ras" (NIfTI's). Written into each mesh's header as `SPACE=...`.
+    pub space: Option<String>,
 }
 
 fn default_naming() -> String {
@@ -150,6 +157,10 @@ pub struct Config {
     pub defaults: Settings,
     #[serde(default, rename = "structure")]
     pub structures: Vec<StructureConfig>,
+    /// `[labels]`: structure names for label values of label maps (`1 = "tumor"`); they win
+    /// over names in the files.
+    #[serde(default)]
+    pub labels: std::collections::BTreeMap<String, String>,
 }
 
 impl Config {

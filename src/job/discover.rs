@@ -15,6 +15,9 @@ pub struct CaseInput {
     pub dir: PathBuf,
     /// (structure name = file stem, file), sorted by name.
     pub meshes: Vec<(String, PathBuf)>,
+    /// Label maps, sorted by name: their labels become structures once read.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub label_maps: Vec<PathBuf>,
     /// Problems found while listing (duplicate structure names).
     pub problems: Vec<String>,
     /// Why the case cannot be processed (its folder cannot be read); such a case fails.
@@ -38,6 +41,7 @@ pub struct Discovery {
 /// What a folder directly holds.
 struct Listing {
     meshes: Vec<PathBuf>,
+    label_maps: Vec<PathBuf>,
     n_subfolders: usize,
     n_other_files: usize,
 }
@@ -60,6 +64,7 @@ fn is_mesh(plan: &Plan, path: &Path) -> bool {
 fn case_meshes(plan: &Plan, dir: &Path, warnings: &mut Vec<String>) -> Result<Listing, String> {
     let mut listing = Listing {
         meshes: Vec::new(),
+        label_maps: Vec::new(),
         n_subfolders: 0,
         n_other_files: 0,
     };
@@ -71,6 +76,9 @@ fn case_meshes(plan: &Plan, dir: &Path, warnings: &mut Vec<String>) -> Result<Li
     {
         match entry {
             Ok(e) if e.depth() == 0 => {}
+            Ok(e) if e.file_type().is_file() && plan.is_label_map(e.path()) => {
+                listing.label_maps.push(e.path().to_path_buf())
+            }
             Ok(e) if e.file_type().is_file() && is_mesh(plan, e.path()) => {
                 listing.meshes.push(e.path().to_path_buf())
             }
@@ -119,7 +127,7 @@ fn case_listing(
         Ok(listing) => listing,
         Err(error) => return (Some(unreadable_case(dir, id, error)), None),
     };
-    if listing.meshes.is_empty() {
+    if listing.meshes.is_empty() && listing.label_maps.is_empty() {
         return (None, Some(listing));
     }
     let mut by_name: std::collections::BTreeMap<String, Vec<PathBuf>> = Default::default();
@@ -172,6 +180,7 @@ fn case_listing(
         id,
         dir: dir.to_path_buf(),
         meshes,
+        label_maps: listing.label_maps,
         problems,
         errors,
         duplicates,
@@ -185,6 +194,7 @@ fn unreadable_case(dir: &Path, id: String, error: String) -> CaseInput {
         id,
         dir: dir.to_path_buf(),
         meshes: Vec::new(),
+        label_maps: Vec::new(),
         problems: Vec::new(),
         errors: vec![error],
         duplicates: Vec::new(),

@@ -76,11 +76,23 @@ pub struct RunResult {
 
 /// Estimated peak memory of a case while it is processed (bytes).
 pub fn memory_estimate(case: &CaseInput) -> u64 {
-    case.meshes
+    let meshes = case
+        .meshes
         .iter()
         .map(|(_, p)| std::fs::metadata(p).map_or(0, |m| m.len()))
         .sum::<u64>()
-        .saturating_mul(MEMORY_PER_INPUT_BYTE)
+        .saturating_mul(MEMORY_PER_INPUT_BYTE);
+    // A label map's file size says little (gzip); its header says how many voxels it holds.
+    let voxels = case
+        .label_maps
+        .iter()
+        .map(|p| {
+            crate::volume::declared_voxels(p)
+                .unwrap_or_else(|| std::fs::metadata(p).map_or(0, |m| m.len()))
+        })
+        .fold(0u64, u64::saturating_add)
+        .saturating_mul(super::label_map::MEMORY_PER_VOXEL);
+    meshes.saturating_add(voxels)
 }
 
 /// Bounds the estimated memory of the cases in flight.
@@ -121,6 +133,7 @@ fn internal_error(id: String, key: String) -> CaseOutput {
             case: id.clone(),
             status: "failed".into(),
             inputs: Vec::new(),
+            label_maps: Vec::new(),
             structures: Vec::new(),
             warnings: Vec::new(),
             errors: vec![

@@ -47,6 +47,12 @@ pub struct Plan {
     pub patterns: Option<Vec<glob::Pattern>>,
     /// Preference among a structure's files by extension (lower case), when given.
     pub extension_order: Option<Vec<String>>,
+    /// File-name globs that select label maps; `None` takes every label-map file.
+    pub label_map_patterns: Option<Vec<glob::Pattern>>,
+    /// Structure names for label values, from `[labels]`.
+    pub label_names: std::collections::BTreeMap<i64, String>,
+    /// World convention of surfaces made from label maps.
+    pub space: crate::volume::Space,
     pub output_root: PathBuf,
     pub formats: Vec<OutputFormat>,
     pub annotate: bool,
@@ -352,6 +358,55 @@ impl Plan {
                     .collect::<Result<Vec<_>, _>>()?,
             ),
         };
+        let label_map_patterns = match &config.input.label_maps {
+            None => None,
+            Some(list) => Some(
+                list.iter()
+                    .map(|p| {
+                        glob::Pattern::new(p)
+                            .map_err(|e| invalid(format!("[input] label_maps: {p:?}: {e}")))
+                    })
+                    .collect::<Result<Vec<_>, _>>()?,
+            ),
+        };
+        let mut label_names = std::collections::BTreeMap::new();
+        for (value, name) in &config.labels {
+            let v: i64 = value.trim().parse().map_err(|_| {
+                invalid(format!(
+                    "[labels] {value:?} = {name:?}: the key must be a label value (a whole number)"
+                ))
+            })?;
+            if v == 0 {
+                return Err(invalid(format!(
+                    "[labels] 0 = {name:?}: label 0 is background and has no surface"
+                )));
+            }
+            if name.is_empty()
+                || name == "."
+                || name == ".."
+                || name.contains(['/', '\\'])
+                || name.chars().any(char::is_control)
+            {
+                return Err(invalid(format!(
+                    "[labels] {value} = {name:?}: a structure name must be non-empty, without path separators or control characters"
+                )));
+            }
+            if let Some((other, _)) = label_names.iter().find(|(_, n)| *n == name) {
+                return Err(invalid(format!(
+                    "[labels] {other} and {v} are both named {name:?}; structure names must differ"
+                )));
+            }
+            label_names.insert(v, name.clone());
+        }
+        let space = match config.output.space.as_deref() {
+            None | Some("lps") | Some("LPS") => crate::volume::Space::Lps,
+            Some("ras") | Some("RAS") => crate::volume::Space::Ras,
+            Some(other) => {
+                return Err(invalid(format!(
+                    "[output] space = {other:?}: expected \"lps\" or \"ras\""
+                )))
+            }
+        };
         let naming = config.output.naming.clone();
         if !naming.contains("{structure}") || naming.contains(['/', '\\']) {
             return Err(invalid(format!(
@@ -393,6 +448,9 @@ impl Plan {
                     .map(|e| e.trim_start_matches('.').to_ascii_lowercase())
                     .collect()
             }),
+            label_map_patterns,
+            label_names,
+            space,
             output_root: absolute(&config.output.root),
             formats,
             annotate: config.output.annotate,
@@ -422,6 +480,23 @@ impl Plan {
     pub fn display(&self, path: &Path) -> String {
         let base = self.config_path.parent().unwrap_or(Path::new(""));
         super::paths::relative_to(base, path).display().to_string()
+    }
+
+    /// Whether a file (by name) is a label map of the cohort.
+    pub fn is_label_map(&self, path: &Path) -> bool {
+        if !crate::volume::is_label_map(path) {
+            return false;
+        }
+        match &self.label_map_patterns {
+            None => true,
+            Some(patterns) => {
+                let name = path
+                    .file_name()
+                    .map(|n| n.to_string_lossy())
+                    .unwrap_or_default();
+                patterns.iter().any(|p| p.matches(&name))
+            }
+        }
     }
 
     /// Which files count as meshes, in words.
@@ -469,6 +544,13 @@ impl Plan {
             .collect()
     }
 
+    /// Hash of every settings table (defaults and `[[structure]]`s): for cases whose structure
+    /// names are known only once their label maps are read.
+    pub fn settings_fingerprint(&self) -> String {
+        let tables = format!("{:?} {:?}", self.defaults, self.structures);
+        blake3::hash(tables.as_bytes()).to_hex().to_string()
+    }
+
     /// Hash of everything in the plan that changes outputs for given settings, with the
     /// program version: part of each case's resume key.
     pub fn output_fingerprint(&self, settings: &[(String, StructureSettings)]) -> String {
@@ -478,6 +560,8 @@ impl Plan {
             "annotate": self.annotate,
             "naming": self.naming,
             "structures": settings,
+            "space": self.space,
+            "labels": self.label_names,
         });
         blake3::hash(value.to_string().as_bytes())
             .to_hex()

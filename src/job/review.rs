@@ -37,16 +37,38 @@ pub fn review(plan: &Plan, found: &Discovery) -> Review {
         ));
         return r;
     }
-    let names: BTreeSet<&str> = found
+    let mut names: BTreeSet<String> = found
         .cases
         .iter()
-        .flat_map(|c| c.meshes.iter().map(|(n, _)| n.as_str()))
+        .flat_map(|c| c.meshes.iter().map(|(n, _)| n.clone()))
         .collect();
-    let list = names.iter().copied().collect::<Vec<_>>().join(", ");
+    // Label maps name their structures from [labels], from their headers (Slicer's segments)
+    // or as label_<value>; the last are known only once the voxels are read.
+    let label_maps: Vec<&std::path::PathBuf> =
+        found.cases.iter().flat_map(|c| &c.label_maps).collect();
+    if !label_maps.is_empty() {
+        names.extend(plan.label_names.values().cloned());
+        for path in &label_maps {
+            for seg in crate::volume::declared_segments(path) {
+                if !plan.label_names.contains_key(&seg.value) {
+                    names.insert(seg.name);
+                }
+            }
+        }
+    }
+    let unnamed_label = |n: &str| {
+        !label_maps.is_empty()
+            && n.strip_prefix("label_")
+                .is_some_and(|v| v.parse::<i64>().is_ok())
+    };
+    let list = names.iter().cloned().collect::<Vec<_>>().join(", ");
     let mut told = BTreeSet::new();
     for name in &names {
         for reference in plan.settings_for(name).references {
-            if !names.contains(reference.as_str()) && told.insert(reference.clone()) {
+            if !names.contains(reference.as_str())
+                && !unnamed_label(&reference)
+                && told.insert(reference.clone())
+            {
                 r.errors.push(format!(
                     "reference {reference:?} (of {name:?}) names no structure of any case; the structures are: {list}"
                 ));
@@ -54,10 +76,14 @@ pub fn review(plan: &Plan, found: &Discovery) -> Review {
         }
     }
     for pattern in plan.structure_patterns() {
-        if !names
+        let matches = names
             .iter()
-            .any(|n| plan.matching_tables(n).contains(&pattern))
-        {
+            .any(|n| plan.matching_tables(n).contains(&pattern));
+        // A pattern such as "label_*" may match the unnamed labels of a label map.
+        let may_match_label = !label_maps.is_empty()
+            && (pattern.starts_with("label_")
+                || glob::Pattern::new(pattern).is_ok_and(|p| p.matches("label_1")));
+        if !matches && !may_match_label {
             r.warnings.push(format!(
                 "[[structure]] pattern {pattern:?} matches no structure (the structures are: {list})"
             ));

@@ -4,6 +4,7 @@
 
 use crate::report::compare::CompareReport;
 use crate::report::inspect::ContextSummary;
+use crate::report::label_map::{LabelMapInfo, LabelSource};
 use crate::smooth::{Method, SmoothStats};
 use serde::Serialize;
 use std::fmt::Write;
@@ -41,6 +42,9 @@ pub struct StructureReport {
     /// Output files written for this structure (names within the case folder).
     pub outputs: Vec<String>,
     pub warnings: Vec<String>,
+    /// The label map and label this structure was extracted from (absent for mesh files).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub source: Option<LabelSource>,
 }
 
 /// Everything about one case.
@@ -50,7 +54,11 @@ pub struct CaseReport {
     pub case: String,
     /// "ok" or "failed" (some structure failed or the case could not be read).
     pub status: String,
+    /// Mesh files read.
     pub inputs: Vec<InputInfo>,
+    /// Label maps read, with the structure each label became.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub label_maps: Vec<LabelMapInfo>,
     pub structures: Vec<StructureReport>,
     pub warnings: Vec<String>,
     pub errors: Vec<String>,
@@ -68,6 +76,22 @@ impl CaseReport {
         }
         for w in &self.warnings {
             let _ = writeln!(s, "- warning: {w}");
+        }
+        for m in &self.label_maps {
+            let sp = m.spacing_mm;
+            let _ = writeln!(
+                s,
+                "- label map `{}`: {} x {} x {} voxels of {:.4} x {:.4} x {:.4} mm, {} label(s), surfaces in {}",
+                m.file,
+                m.dims[0],
+                m.dims[1],
+                m.dims[2],
+                sp[0],
+                sp[1],
+                sp[2],
+                m.labels.len(),
+                m.space.tag()
+            );
         }
         s.push_str("\n| structure | status | method | vertices | Hausdorff (mm) | mean dist. (mm) | volume (%) | curvature (deg) | caps | staircase share |\n|---|---|---|---|---|---|---|---|---|---|\n");
         for st in &self.structures {
@@ -109,6 +133,22 @@ impl CaseReport {
                         st.name, r.name, r.before_mm, r.after_mm, r.change_mm
                     );
                 }
+            }
+            if let Some(src) = &st.source {
+                let v = src.voxel_mm;
+                let _ = writeln!(
+                    s,
+                    "\n`{}`: label {} of `{}` ({} voxels, {:.1} mm³), grid voxel {:.4} x {:.4} x {:.4} mm; voxel size and stack axis from {}",
+                    st.name,
+                    src.label,
+                    src.label_map,
+                    src.n_voxels,
+                    src.voxel_volume_mm3,
+                    v[0],
+                    v[1],
+                    v[2],
+                    src.geometry
+                );
             }
             for w in &st.warnings {
                 let _ = writeln!(s, "\n`{}`: {w}", st.name);

@@ -5,6 +5,54 @@ use crate::volume::{LabelMap, Space};
 use serde::Serialize;
 use std::fmt::Write;
 
+/// Where a structure made from a label map comes from, for its report.
+#[derive(Debug, Clone, Serialize)]
+pub struct LabelSource {
+    /// The label map's file name.
+    pub label_map: String,
+    /// Layer of a `.seg.nrrd` with overlapping segments (0 otherwise).
+    pub layer: usize,
+    /// The label value in the voxels.
+    pub label: i64,
+    pub n_voxels: u64,
+    /// Volume of the label's voxels (mm³).
+    pub voxel_volume_mm3: f64,
+    /// Voxel size along the grid's axes i, j, k (mm), from the header.
+    pub voxel_mm: [f64; 3],
+    /// The thick-slice axis (largest spacing; k on ties) as a unit world direction.
+    pub stack_axis: [f64; 3],
+    /// Where the voxel size and stack axis used for smoothing came from: the header (smoothed in
+    /// the grid's frame) or, for sheared grids, estimates from the mesh (smoothed in world).
+    pub geometry: String,
+}
+
+/// What a case's label map held, for the case report.
+#[derive(Debug, Clone, Serialize)]
+pub struct LabelMapInfo {
+    pub file: String,
+    pub bytes: u64,
+    pub blake3: String,
+    /// World convention of the surfaces.
+    pub space: Space,
+    pub dims: [usize; 3],
+    pub spacing_mm: [f64; 3],
+    /// Voxel index to world mm, in `space`.
+    pub affine: [[f64; 4]; 4],
+    pub n_layers: usize,
+    /// (value, structure name, layer, voxels) per label.
+    pub labels: Vec<LabelEntry>,
+    pub warnings: Vec<String>,
+}
+
+/// One label of a label map and the structure it became.
+#[derive(Debug, Clone, Serialize)]
+pub struct LabelEntry {
+    pub value: i64,
+    pub structure: String,
+    pub layer: usize,
+    pub n_voxels: u64,
+}
+
 /// One label of a layer.
 #[derive(Debug, Clone, Serialize)]
 pub struct LabelRow {

@@ -312,6 +312,20 @@ pub fn declared_voxels(path: &Path) -> Option<u64> {
     }
 }
 
+/// The segment names a label map's header gives (3D Slicer's `.seg.nrrd` fields), read from
+/// the header alone; empty for NIfTI, which names no labels.
+pub fn declared_segments(path: &Path) -> Vec<Segment> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    if name.ends_with(".nrrd") || name.ends_with(".nhdr") {
+        nrrd::declared_segments(path)
+    } else {
+        Vec::new()
+    }
+}
+
 /// The `n` bytes of voxels at `offset`, or what the header claims against what there is.
 pub(crate) fn exact_slice(data: &[u8], offset: u64, n: u64) -> Result<&[u8], String> {
     match offset.checked_add(n) {

@@ -261,17 +261,31 @@ pub fn read(path: &Path) -> Result<LabelMap, String> {
     })
 }
 
+/// The header text alone, read in growing chunks (a header is small; the data after it is not
+/// read).
+fn header_text(path: &Path) -> Option<String> {
+    use std::io::Read;
+    let mut file = std::fs::File::open(path).ok()?;
+    let mut head = Vec::new();
+    let mut chunk = 64 << 10;
+    loop {
+        let before = head.len();
+        (&mut file).take(chunk).read_to_end(&mut head).ok()?;
+        if let Some((end, _)) = find_blank_line(&head) {
+            head.truncate(end);
+            break;
+        }
+        if head.len() == before || head.len() >= MAX_HEADER {
+            break;
+        }
+        chunk *= 2;
+    }
+    Some(String::from_utf8_lossy(&head).into_owned())
+}
+
 /// Voxels the header declares, all layers (see [`super::declared_voxels`]).
 pub(super) fn declared_voxels(path: &Path) -> Option<u64> {
-    use std::io::Read;
-    let mut head = Vec::new();
-    std::fs::File::open(path)
-        .ok()?
-        .take(MAX_HEADER as u64)
-        .read_to_end(&mut head)
-        .ok()?;
-    let end = find_blank_line(&head).map_or(head.len(), |(e, _)| e);
-    let text = String::from_utf8_lossy(&head[..end]);
+    let text = header_text(path)?;
     let sizes = text
         .lines()
         .find_map(|l| l.trim_end_matches('\r').strip_prefix("sizes:"))?;
@@ -279,6 +293,19 @@ pub(super) fn declared_voxels(path: &Path) -> Option<u64> {
         .split_whitespace()
         .map(|s| s.parse::<u64>().ok())
         .try_fold(1u64, |n, s| n.checked_mul(s?))
+}
+
+/// The segments a header names (3D Slicer's fields), read from the header alone.
+pub(super) fn declared_segments(path: &Path) -> Vec<Segment> {
+    let Some(text) = header_text(path) else {
+        return Vec::new();
+    };
+    let pairs: BTreeMap<String, String> = text
+        .lines()
+        .filter_map(|l| l.trim_end_matches('\r').split_once(":="))
+        .map(|(k, v)| (k.to_string(), v.to_string()))
+        .collect();
+    segments(&pairs, &mut Vec::new())
 }
 
 /// (end of the header text, start of the data): the first empty line.

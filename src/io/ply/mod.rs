@@ -6,4 +6,4 @@ pub mod read;
 pub mod write;
 
 pub use header::{ElementDef, Encoding, Header, PropertyDef, PropertyType, ScalarType};
-pub use write::{encode_ply, write_ply};
+pub use write::{encode_ply, write_ply, write_ply_with_faces};

@@ -1,7 +1,8 @@
 //! Binary little-endian PLY writer. Vertex order is kept; faces are written as
 //! `list uchar int vertex_indices`, the layout MeshLab and every other reader accept; extra
 //! per-vertex scalars (weights, displacements) go out as float properties so ParaView and
-//! MeshLab can colour by them. Header comments and obj_info are written back.
+//! MeshLab can colour by them; per-face integers (the two labels an interface separates) go
+//! after the face list. Header comments and obj_info are written back.
 
 use crate::io::{write_atomically, write_rows, MeshMeta, WriteError};
 use crate::mesh::Mesh;
@@ -15,12 +16,25 @@ pub fn write_ply(
     meta: &MeshMeta,
     vertex_properties: &[(&str, &[f32])],
 ) -> Result<(), WriteError> {
+    write_ply_with_faces(path, mesh, meta, vertex_properties, &[])
+}
+
+/// [`write_ply`] with per-face integer properties (written as `int` after the vertex list).
+pub fn write_ply_with_faces(
+    path: &Path,
+    mesh: &Mesh,
+    meta: &MeshMeta,
+    vertex_properties: &[(&str, &[f32])],
+    face_properties: &[(&str, &[i32])],
+) -> Result<(), WriteError> {
     check_properties(mesh, vertex_properties)?;
-    write_atomically(path, |w| write_ply_to(w, mesh, meta, vertex_properties)).map_err(|source| {
-        WriteError::Io {
-            path: path.to_path_buf(),
-            source,
-        }
+    check_face_properties(mesh, face_properties)?;
+    write_atomically(path, |w| {
+        write_ply_to(w, mesh, meta, vertex_properties, face_properties)
+    })
+    .map_err(|source| WriteError::Io {
+        path: path.to_path_buf(),
+        source,
     })
 }
 
@@ -32,7 +46,8 @@ pub fn encode_ply(
 ) -> Result<Vec<u8>, WriteError> {
     check_properties(mesh, vertex_properties)?;
     let mut out = Vec::new();
-    write_ply_to(&mut out, mesh, meta, vertex_properties).expect("writing to a Vec cannot fail");
+    write_ply_to(&mut out, mesh, meta, vertex_properties, &[])
+        .expect("writing to a Vec cannot fail");
     Ok(out)
 }
 
@@ -42,6 +57,7 @@ fn write_ply_to(
     mesh: &Mesh,
     meta: &MeshMeta,
     vertex_properties: &[(&str, &[f32])],
+    face_properties: &[(&str, &[i32])],
 ) -> std::io::Result<()> {
     let mut header = String::from("ply\nformat binary_little_endian 1.0\n");
     for c in &meta.comments {
@@ -64,9 +80,13 @@ fn write_ply_to(
         "int"
     };
     header.push_str(&format!(
-        "element face {}\nproperty list uchar {index_type} vertex_indices\nend_header\n",
+        "element face {}\nproperty list uchar {index_type} vertex_indices\n",
         mesh.n_triangles()
     ));
+    for (name, _) in face_properties {
+        header.push_str(&format!("property int {name}\n"));
+    }
+    header.push_str("end_header\n");
     w.write_all(header.as_bytes())?;
     let positions = mesh.positions();
     write_rows(
@@ -83,12 +103,43 @@ fn write_ply_to(
         },
     )?;
     let triangles = mesh.triangles();
-    write_rows(w, mesh.n_triangles(), 13, |f, row| {
-        row[0] = 3;
-        for k in 0..3 {
-            row[1 + 4 * k..5 + 4 * k].copy_from_slice(&triangles[f][k].to_le_bytes());
+    write_rows(
+        w,
+        mesh.n_triangles(),
+        13 + 4 * face_properties.len(),
+        |f, row| {
+            row[0] = 3;
+            for k in 0..3 {
+                row[1 + 4 * k..5 + 4 * k].copy_from_slice(&triangles[f][k].to_le_bytes());
+            }
+            for (j, (_, values)) in face_properties.iter().enumerate() {
+                row[13 + 4 * j..17 + 4 * j].copy_from_slice(&values[f].to_le_bytes());
+            }
+        },
+    )
+}
+
+fn check_face_properties(mesh: &Mesh, props: &[(&str, &[i32])]) -> Result<(), WriteError> {
+    for (i, (name, values)) in props.iter().enumerate() {
+        let bad = |message: String| WriteError::InvalidProperty {
+            name: name.to_string(),
+            message,
+        };
+        if name.is_empty() || name.chars().any(|c| c.is_whitespace() || c.is_control()) {
+            return Err(bad("names must be non-empty and without spaces".into()));
         }
-    })
+        if *name == "vertex_indices" || props[..i].iter().any(|(n, _)| n == name) {
+            return Err(bad("name is used twice".into()));
+        }
+        if values.len() != mesh.n_triangles() {
+            return Err(bad(format!(
+                "has {} values but the mesh has {} faces",
+                values.len(),
+                mesh.n_triangles()
+            )));
+        }
+    }
+    Ok(())
 }
 
 fn one_line(s: &str) -> String {

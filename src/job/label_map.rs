@@ -1,0 +1,298 @@
+//! Label maps as cases: a segmentation in a case folder is read and hashed by the loader, and
+//! its labels become the case's structures. All labels of a layer are extracted at once
+//! (consistent shared interfaces), each in its grid's own frame, where the voxel size and the
+//! stack axis are known exactly from the header instead of being estimated from the mesh.
+//! Surfaces go back to world millimetres (LPS or RAS, as the plan says) when written.
+
+use super::plan::Plan;
+use crate::io::{with_file_bytes, LoadedMesh, MeshMeta, SourceFormat};
+use crate::mesh::Mesh;
+pub use crate::report::label_map::{LabelEntry, LabelMapInfo, LabelSource};
+use crate::volume::grid::GridFrame;
+use crate::volume::LabelMap;
+use std::path::{Path, PathBuf};
+
+/// Most labels a label map of a cohort may hold: more is an image (a CT holds thousands of
+/// distinct values), not a segmentation. TotalSegmentator's largest task has 117.
+pub const MAX_LABELS: usize = 1000;
+
+/// Estimated peak bytes per voxel of a label map case: the stored labels (2), the decoded
+/// file (up to 4), the extraction's vertex keys and surfaces, and smoothing those surfaces.
+pub const MEMORY_PER_VOXEL: u64 = 12;
+
+/// A label map of a case, read and hashed.
+#[derive(Debug)]
+pub struct LoadedLabelMap {
+    pub path: PathBuf,
+    /// File name (within the case folder).
+    pub file: String,
+    /// Bytes read (header and detached data file).
+    pub bytes: u64,
+    /// BLAKE3 of the file's bytes (and of its detached data file's, when there is one).
+    pub blake3: String,
+    pub map: Result<LabelMap, String>,
+}
+
+/// Where a structure's mesh coordinates live.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Place {
+    /// World mm (mesh files, and surfaces of sheared grids).
+    World,
+    /// The own frame of the grid of the case's label map with this index.
+    Frame(usize, GridFrame),
+}
+
+impl Place {
+    /// Positions of `mesh` (in `self`) expressed in `to`, with triangles turned so that normals
+    /// keep pointing the same way when the change mirrors; `None` when the places agree.
+    pub fn mesh_in(&self, mesh: &Mesh, to: &Place) -> Option<Mesh> {
+        if self.same(to) {
+            return None;
+        }
+        let mirrored = self.mirrored() != to.mirrored();
+        let positions = mesh
+            .positions()
+            .iter()
+            .map(|p| {
+                let w = self.world_of(p.map(f64::from));
+                to.of_world(w).map(|x| x as f32)
+            })
+            .collect();
+        let triangles = mesh
+            .triangles()
+            .iter()
+            .map(|t| if mirrored { [t[0], t[2], t[1]] } else { *t })
+            .collect();
+        // Same topology, finite positions: stays a valid mesh.
+        Mesh::new(positions, triangles).ok()
+    }
+
+    fn same(&self, other: &Place) -> bool {
+        match (self, other) {
+            (Place::World, Place::World) => true,
+            (Place::Frame(a, _), Place::Frame(b, _)) => a == b,
+            _ => false,
+        }
+    }
+
+    fn mirrored(&self) -> bool {
+        match self {
+            Place::World => false,
+            Place::Frame(_, f) => f.mirrored(),
+        }
+    }
+
+    fn world_of(&self, p: [f64; 3]) -> [f64; 3] {
+        match self {
+            Place::World => p,
+            Place::Frame(_, f) => f.to_world(p),
+        }
+    }
+
+    fn of_world(&self, w: [f64; 3]) -> [f64; 3] {
+        match self {
+            Place::World => w,
+            Place::Frame(_, f) => f.to_frame(w),
+        }
+    }
+
+    /// A direction given in world, in this place.
+    pub fn direction_from_world(&self, d: [f64; 3]) -> [f64; 3] {
+        match self {
+            Place::World => d,
+            Place::Frame(_, f) => f.direction_to_frame(d),
+        }
+    }
+
+    /// A direction in this place, in world.
+    pub fn direction_to_world(&self, d: [f64; 3]) -> [f64; 3] {
+        match self {
+            Place::World => d,
+            Place::Frame(_, f) => f.direction_to_world(d),
+        }
+    }
+}
+
+/// One structure made from a label map.
+#[derive(Debug)]
+pub struct LabelStructure {
+    pub name: String,
+    /// The surface, in `place`'s coordinates.
+    pub mesh: LoadedMesh,
+    pub place: Place,
+    pub source: LabelSource,
+}
+
+/// Reads and hashes a label map (with its detached data file) in `plan.space`.
+pub fn load_label_map(plan: &Plan, path: &Path) -> LoadedLabelMap {
+    let file = path
+        .file_name()
+        .map_or_else(String::new, |f| f.to_string_lossy().into_owned());
+    let mut hasher = blake3::Hasher::new();
+    let mut bytes = 0;
+    let hashed = with_file_bytes(path, plan.read_mode, |b| {
+        hasher.update(b);
+        bytes += b.len() as u64;
+    });
+    let map = match hashed {
+        Err(e) => Err(format!("{}: cannot read: {e}", plan.display(path))),
+        Ok(()) => crate::volume::read_label_map(path, plan.space)
+            .map_err(|e| format!("{}: {}", plan.display(path), e.message))
+            .and_then(|map| {
+                if let Some(data) = &map.data_file {
+                    with_file_bytes(data, plan.read_mode, |b| {
+                        hasher.update(b);
+                        bytes += b.len() as u64;
+                    })
+                    .map_err(|e| format!("{}: cannot read: {e}", plan.display(data)))?;
+                }
+                let n: usize = map.layers.iter().map(|l| l.labels.len()).sum();
+                if n > MAX_LABELS {
+                    return Err(format!(
+                        "{}: holds {n} distinct values, more than the {MAX_LABELS} labels a segmentation has: is it an image? Select the label maps with [input] label_maps (e.g. [\"*seg*.nii.gz\"])",
+                        plan.display(path)
+                    ));
+                }
+                Ok(map)
+            }),
+    };
+    LoadedLabelMap {
+        path: path.to_path_buf(),
+        file,
+        bytes,
+        blake3: hasher.finalize().to_hex().to_string(),
+        map,
+    }
+}
+
+/// A label's name as a structure: `[labels]` first, then the file's own (Slicer's segment
+/// names), made safe as a file stem.
+fn structure_name(plan: &Plan, value: i64, file_name: &str) -> String {
+    let name = plan
+        .label_names
+        .get(&value)
+        .map_or(file_name, String::as_str);
+    let s: String = name
+        .chars()
+        .map(|c| {
+            if c == '/' || c == '\\' || c.is_control() {
+                '_'
+            } else {
+                c
+            }
+        })
+        .collect();
+    if s.is_empty() || s == "." || s == ".." {
+        format!("label_{value}")
+    } else {
+        s
+    }
+}
+
+/// Extracts every label of every layer of a read label map (the `index`-th of its case) as a
+/// structure, with the map's report entry.
+pub fn label_structures(
+    plan: &Plan,
+    index: usize,
+    loaded: &LoadedLabelMap,
+    map: &LabelMap,
+) -> (Vec<LabelStructure>, LabelMapInfo) {
+    let mut structures = Vec::new();
+    let mut entries = Vec::new();
+    let mut warnings = map.warnings.clone();
+    for (layer_index, layer) in map.layers.iter().enumerate() {
+        let grid = layer.grid;
+        let all = crate::extract::interfaces(layer);
+        let (surfaces, place) = match grid.frame() {
+            Some(frame) => (
+                crate::extract::label_surfaces_in_frame(layer, &all),
+                Place::Frame(index, frame),
+            ),
+            None => {
+                warnings.push(format!(
+                    "layer {layer_index}: the grid's axes are not perpendicular (a sheared grid); its surfaces are smoothed in world mm with the voxel size and stack axis estimated from each mesh"
+                ));
+                (crate::extract::label_surfaces(layer, &all), Place::World)
+            }
+        };
+        let geometry = match place {
+            Place::Frame(..) => "the label map's header (smoothed in the grid's own frame, mm along its axes i, j, k; written in world mm)",
+            Place::World => "the mesh, estimated (the grid is sheared, so the surface is smoothed in world mm)",
+        };
+        for s in surfaces {
+            let label = &layer.labels[s.label as usize - 1];
+            let name = structure_name(plan, label.value, &label.name);
+            entries.push(LabelEntry {
+                value: label.value,
+                structure: name.clone(),
+                layer: layer_index,
+                n_voxels: label.n_voxels,
+            });
+            let meta = MeshMeta {
+                comments: vec![
+                    format!("SPACE={}", plan.space.tag()),
+                    format!("destair: label {} of {}", label.value, loaded.file),
+                ],
+                obj_info: Vec::new(),
+            };
+            structures.push(LabelStructure {
+                name,
+                mesh: LoadedMesh {
+                    mesh: s.mesh,
+                    meta,
+                    vertex_properties: Vec::new(),
+                    warnings: Vec::new(),
+                    format: SourceFormat::Extracted,
+                },
+                place,
+                source: LabelSource {
+                    label_map: loaded.file.clone(),
+                    layer: layer_index,
+                    label: label.value,
+                    n_voxels: label.n_voxels,
+                    voxel_volume_mm3: label.n_voxels as f64 * grid.voxel_volume(),
+                    voxel_mm: grid.spacing(),
+                    stack_axis: grid.stack_axis(),
+                    geometry: geometry.into(),
+                },
+            });
+        }
+    }
+    for (value, name) in &plan.label_names {
+        if !entries.iter().any(|e| e.value == *value) {
+            warnings.push(format!(
+                "[labels] names {value} = {name:?}, but no voxel of {} holds {value}",
+                loaded.file
+            ));
+        }
+    }
+    let first = map.layers.first();
+    let info = LabelMapInfo {
+        file: loaded.file.clone(),
+        bytes: loaded.bytes,
+        blake3: loaded.blake3.clone(),
+        space: plan.space,
+        dims: first.map_or([0; 3], |l| l.dims),
+        spacing_mm: first.map_or([0.0; 3], |l| l.grid.spacing()),
+        affine: first.map_or([[0.0; 4]; 4], |l| l.grid.affine()),
+        n_layers: map.layers.len(),
+        labels: entries,
+        warnings,
+    };
+    (structures, info)
+}
+
+/// A structure's voxel size and stack axis in its place, when the header gives them: the
+/// grid's spacing and the coordinate axis of the largest spacing, in the grid's frame.
+pub fn header_geometry(place: &Place, source: &LabelSource) -> Option<([f32; 3], [f32; 3])> {
+    match place {
+        Place::World => None,
+        Place::Frame(..) => {
+            let s = source.voxel_mm;
+            let k = (0..3).fold(2, |best, c| if s[c] > s[best] { c } else { best });
+            let mut axis = [0.0f32; 3];
+            axis[k] = 1.0;
+            Some((s.map(|x| x as f32), axis))
+        }
+    }
+}

@@ -1,0 +1,489 @@
+//! Label maps as cases of the cohort runner: labels become structures named by `[labels]`, the
+//! file's segment names or `label_<value>`; they are smoothed with the header's voxel size and
+//! stack axis in the grid's own frame, so an oblique acquisition gives the same result as an
+//! axis-aligned one up to the rigid motion; outputs are in world LPS or RAS; resume, name
+//! clashes, images that are not segmentations and corrupt files behave as for meshes.
+
+mod common;
+
+use common::cohort::{destair, stderr};
+use destair::io::{read_mesh, ReadOptions};
+use destair::volume::{nifti, nrrd, Grid, LabelVolume, Segment, Space};
+use std::path::{Path, PathBuf};
+
+fn write(path: &Path, bytes: &[u8]) {
+    std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+    std::fs::write(path, bytes).unwrap();
+}
+
+fn phantom(dir: &Path, extra: &[&str]) {
+    let mut args = vec!["phantom", "labelmap-neck", "--out", dir.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    let out = destair(&args);
+    assert!(out.status.success(), "{}", stderr(&out));
+}
+
+fn config(dir: &Path, text: &str) -> PathBuf {
+    let path = dir.join("cohort.toml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+fn report(dir: &Path, case: &str) -> serde_json::Value {
+    serde_json::from_slice(&std::fs::read(dir.join("out").join(case).join("report.json")).unwrap())
+        .unwrap()
+}
+
+fn structure<'a>(report: &'a serde_json::Value, name: &str) -> &'a serde_json::Value {
+    report["structures"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|s| s["name"] == name)
+        .unwrap_or_else(|| panic!("no structure {name} in {report}"))
+}
+
+const BASE: &str = r#"
+[input]
+roots = ["cases"]
+case_depth = 1
+[output]
+root = "out"
+[labels]
+1 = "tumor"
+2 = "vein"
+[defaults]
+method = "hc"
+iterations = 20
+[[structure]]
+pattern = "tumor"
+references = ["vein"]
+"#;
+
+#[test]
+fn labels_become_structures_smoothed_with_the_header_geometry() {
+    let tmp = tempfile::tempdir().unwrap();
+    phantom(&tmp.path().join("cases/straight"), &[]);
+    phantom(
+        &tmp.path().join("cases/oblique"),
+        &["--rotate-x", "25", "--rotate-y", "-40"],
+    );
+    let text = format!("{BASE}[[structure]]\npattern = \"label_3\"\nskip = true\n");
+    let cfg = config(tmp.path(), &text);
+    let out = destair(&["run", cfg.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        !stderr(&out).contains("matches no structure"),
+        "{}",
+        stderr(&out)
+    );
+    let straight = report(tmp.path(), "straight");
+    let oblique = report(tmp.path(), "oblique");
+    for r in [&straight, &oblique] {
+        assert_eq!(r["status"], "ok", "{r}");
+        let labels = &r["label_maps"][0]["labels"];
+        let names: Vec<&str> = labels
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|l| l["structure"].as_str().unwrap())
+            .collect();
+        // [labels] names 1 and 2; 3 has no name anywhere.
+        assert_eq!(names, ["tumor", "vein", "label_3"]);
+        for name in ["tumor", "vein"] {
+            let s = structure(r, name);
+            assert_eq!(s["status"], "ok");
+            let src = &s["source"];
+            // The voxel size and the stack axis are the header's, not estimates.
+            let v = src["voxel_mm"].as_array().unwrap();
+            assert!((v[0].as_f64().unwrap() - 0.45).abs() < 1e-6, "{src}");
+            assert!((v[2].as_f64().unwrap() - 3.0).abs() < 1e-6, "{src}");
+            assert_eq!(s["context"]["axis_source"], "label_map_header");
+            assert!(s["context"]["n_staircase_vertices"].as_u64().unwrap() > 0);
+            assert_eq!(s["method"]["method"], "hc", "{}", s["method"]);
+            // The reported axis is the header's slice normal in world.
+            let axis: Vec<f64> = s["context"]["axis"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|x| x.as_f64().unwrap())
+                .collect();
+            let want: Vec<f64> = src["stack_axis"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|x| x.as_f64().unwrap())
+                .collect();
+            let dot: f64 = axis.iter().zip(&want).map(|(a, b)| a * b).sum();
+            assert!(dot.abs() > 1.0 - 1e-5, "{axis:?} vs {want:?}");
+        }
+        assert_eq!(structure(r, "label_3")["status"], "skipped");
+    }
+    // Oblique and straight differ by a rigid motion only: the same smoothing, the same figures.
+    for name in ["tumor", "vein"] {
+        let (a, b) = (structure(&straight, name), structure(&oblique, name));
+        assert_eq!(a["n_vertices"], b["n_vertices"]);
+        assert_eq!(
+            a["context"]["n_staircase_vertices"],
+            b["context"]["n_staircase_vertices"]
+        );
+        for key in ["volume_percent", "normal_curvature_smoothed_deg"] {
+            let (x, y) = (
+                a["metrics"][key].as_f64().unwrap(),
+                b["metrics"][key].as_f64().unwrap(),
+            );
+            assert!(
+                (x - y).abs() <= 1e-3 * x.abs().max(1.0),
+                "{name} {key}: {x} vs {y}"
+            );
+        }
+        let (x, y) = (
+            a["metrics"]["distance"]["hausdorff_mm"].as_f64().unwrap(),
+            b["metrics"]["distance"]["hausdorff_mm"].as_f64().unwrap(),
+        );
+        assert!((x - y).abs() < 1e-3, "{name} hausdorff {x} vs {y}");
+    }
+    // Outputs are in world LPS: a skipped label is exactly what `destair extract` writes.
+    let ex = tmp.path().join("extracted");
+    let run = destair(&[
+        "extract",
+        tmp.path()
+            .join("cases/oblique/segmentation.nii.gz")
+            .to_str()
+            .unwrap(),
+        "--out",
+        ex.to_str().unwrap(),
+        "--labels",
+        "1=tumor,2=vein",
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let opts = ReadOptions::default();
+    let extracted = read_mesh(&ex.join("label_3.ply"), &opts).unwrap();
+    let copied = read_mesh(&tmp.path().join("out/oblique/label_3.ply"), &opts).unwrap();
+    assert!(copied.meta.comments.iter().any(|c| c == "SPACE=LPS"));
+    assert_eq!(extracted.mesh.triangles(), copied.mesh.triangles());
+    let worst = extracted
+        .mesh
+        .positions()
+        .iter()
+        .zip(copied.mesh.positions())
+        .map(|(a, b)| (0..3).map(|k| (a[k] - b[k]).abs()).fold(0f32, f32::max))
+        .fold(0f32, f32::max);
+    assert!(worst < 1e-3, "copied label moved by {worst} mm");
+    // Smoothed outputs stay where the label is, outward oriented, within a voxel of it.
+    for name in ["tumor", "vein"] {
+        let before = read_mesh(&ex.join(format!("{name}.ply")), &opts).unwrap();
+        let after = read_mesh(&tmp.path().join(format!("out/oblique/{name}.ply")), &opts).unwrap();
+        let (vb, va) = (
+            destair::mesh::geometry::signed_volume(&before.mesh),
+            destair::mesh::geometry::signed_volume(&after.mesh),
+        );
+        assert!(
+            va > 0.0 && (va / vb - 1.0).abs() < 0.05,
+            "{name}: {vb} -> {va}"
+        );
+        let moved = before
+            .mesh
+            .positions()
+            .iter()
+            .zip(after.mesh.positions())
+            .map(|(a, b)| (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f32>().sqrt())
+            .fold(0f32, f32::max);
+        assert!(
+            moved > 0.01 && moved < 3.0,
+            "{name}: moved at most {moved} mm"
+        );
+    }
+}
+
+/// A 3-label volume on a mirrored grid (NIfTI's qfac = -1 kind) in RAS.
+fn mirrored_volume() -> LabelVolume {
+    let dims = [24, 20, 10];
+    let mut values = vec![0i64; dims.iter().product()];
+    for k in 2..8 {
+        for j in 3..17 {
+            for i in 3..21 {
+                let label = if i < 10 {
+                    1
+                } else if i < 15 {
+                    2
+                } else {
+                    7
+                };
+                values[i + dims[0] * (j + dims[1] * k)] = label;
+            }
+        }
+    }
+    let grid = Grid {
+        matrix: [[-0.8, 0.0, 0.0], [0.0, 0.8, 0.0], [0.0, 0.0, 2.5]],
+        origin: [40.0, -10.0, 5.0],
+        space: Space::Ras,
+    };
+    LabelVolume::from_values(dims, grid, values.into_iter()).unwrap()
+}
+
+#[test]
+fn names_spaces_mirrors_and_resume() {
+    let tmp = tempfile::tempdir().unwrap();
+    let volume = mirrored_volume();
+    // A .seg.nrrd with Slicer's names; [labels] wins for value 2.
+    let segments = vec![
+        Segment {
+            name: "liver".into(),
+            value: 1,
+            layer: 0,
+        },
+        Segment {
+            name: "portal vein".into(),
+            value: 2,
+            layer: 0,
+        },
+    ];
+    write(
+        &tmp.path().join("cases/a/seg.seg.nrrd"),
+        &nrrd::encode(std::slice::from_ref(&volume), &segments, true).unwrap(),
+    );
+    let text = r#"
+[input]
+roots = ["cases"]
+case_depth = 1
+[output]
+root = "out"
+space = "ras"
+[labels]
+2 = "vein"
+[defaults]
+method = "laplace"
+iterations = 5
+[[structure]]
+pattern = "liver"
+references = ["vein"]
+"#;
+    let cfg = config(tmp.path(), text);
+    let out = destair(&["run", cfg.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let r = report(tmp.path(), "a");
+    assert_eq!(r["status"], "ok", "{r}");
+    let names: Vec<&str> = r["structures"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["label_7", "liver", "vein"]);
+    assert_eq!(r["label_maps"][0]["space"], "RAS");
+    let opts = ReadOptions::default();
+    for name in names {
+        let m = read_mesh(&tmp.path().join(format!("out/a/{name}.ply")), &opts).unwrap();
+        assert!(m.meta.comments.iter().any(|c| c == "SPACE=RAS"));
+        // Outward normals despite the mirrored grid; where the affine puts the label.
+        assert!(
+            destair::mesh::geometry::signed_volume(&m.mesh) > 0.0,
+            "{name}"
+        );
+        let xs: Vec<f32> = m.mesh.positions().iter().map(|p| p[0]).collect();
+        let max_x = xs.iter().copied().fold(f32::MIN, f32::max);
+        // i from 3 on, x = 40 - 0.8 i: nothing beyond x = 40 - 0.8 * 2.5.
+        assert!(max_x <= 38.0 + 0.8, "{name}: max x {max_x}");
+    }
+    // The liver touches the vein: the reference distance is 0 before and after.
+    let liver = structure(&r, "liver");
+    assert_eq!(liver["metrics"]["references"][0]["name"], "vein");
+    // Resume: nothing changes, nothing is redone.
+    let again = destair(&["run", cfg.to_str().unwrap()]);
+    assert!(again.status.success());
+    assert!(
+        stderr(&again).contains("1 already done"),
+        "{}",
+        stderr(&again)
+    );
+    // Naming a label is a different output: redone.
+    std::fs::write(
+        &cfg,
+        text.replace("2 = \"vein\"", "2 = \"vein\"\n7 = \"duct\""),
+    )
+    .unwrap();
+    let renamed = destair(&["run", cfg.to_str().unwrap()]);
+    assert!(renamed.status.success(), "{}", stderr(&renamed));
+    assert!(
+        stderr(&renamed).contains("0 already done"),
+        "{}",
+        stderr(&renamed)
+    );
+    assert!(tmp.path().join("out/a/duct.ply").exists());
+    // The old name's output is gone with the new manifest.
+    assert!(!tmp.path().join("out/a/label_7.ply").exists());
+}
+
+#[test]
+fn clashes_images_and_corrupt_label_maps_fail_their_case_only() {
+    let tmp = tempfile::tempdir().unwrap();
+    let volume = mirrored_volume();
+    let nii = nifti::encode(&volume, true).unwrap();
+    // ok: a plain label map.
+    write(&tmp.path().join("cases/ok/seg.nii.gz"), &nii);
+    // clash: a mesh file named like a label.
+    write(&tmp.path().join("cases/clash/seg.nii.gz"), &nii);
+    let tetra = destair::Mesh::new(
+        vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ],
+        vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
+    )
+    .unwrap();
+    destair::io::ply::write_ply(
+        &tmp.path().join("cases/clash/tumor.ply"),
+        &tetra,
+        &Default::default(),
+        &[],
+    )
+    .unwrap();
+    // image: 2000 distinct values, as an intensity image has.
+    let dims = [20, 20, 10];
+    let image = LabelVolume::from_values(
+        dims,
+        Grid::axis_aligned([1.0; 3], [0.0; 3], Space::Ras),
+        (0..4000).map(|i| (i % 2000) as i64),
+    )
+    .unwrap();
+    write(
+        &tmp.path().join("cases/image/ct.nii.gz"),
+        &nifti::encode(&image, true).unwrap(),
+    );
+    // corrupt: truncated gzip.
+    write(
+        &tmp.path().join("cases/corrupt/seg.nii.gz"),
+        &nii[..nii.len() / 2],
+    );
+    let text = r#"
+[input]
+roots = ["cases"]
+case_depth = 1
+[output]
+root = "out"
+[labels]
+1 = "tumor"
+[defaults]
+method = "laplace"
+iterations = 3
+"#;
+    let cfg = config(tmp.path(), text);
+    let out = destair(&["run", cfg.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(3), "{}", stderr(&out));
+    assert_eq!(report(tmp.path(), "ok")["status"], "ok");
+    let clash = report(tmp.path(), "clash");
+    assert_eq!(clash["status"], "failed");
+    let e = clash["errors"].to_string();
+    assert!(
+        e.contains("\\\"tumor\\\" comes from both label 1 of seg.nii.gz and tumor.ply"),
+        "{e}"
+    );
+    let image = report(tmp.path(), "image")["errors"].to_string();
+    assert!(
+        image.contains("ct.nii.gz")
+            && image.contains("1999 distinct values")
+            && image.contains("[input] label_maps"),
+        "{image}"
+    );
+    let corrupt = report(tmp.path(), "corrupt")["errors"].to_string();
+    assert!(
+        corrupt.contains("cases/corrupt/seg.nii.gz") && corrupt.contains("gzip"),
+        "{corrupt}"
+    );
+    // Selecting the label maps by name leaves the image out: that folder is no case any more.
+    std::fs::write(
+        &cfg,
+        text.replace("case_depth = 1", "case_depth = 1\nlabel_maps = [\"seg*\"]"),
+    )
+    .unwrap();
+    let list = destair(&["list", cfg.to_str().unwrap(), "--jsonl"]);
+    let text = String::from_utf8_lossy(&list.stdout);
+    assert!(!text.contains("\"image\""), "{text}");
+    assert!(text.contains("\"label_maps\":[\"seg.nii.gz\"]"), "{text}");
+}
+
+#[test]
+fn combined_interfaces_carry_the_labels_of_both_sides() {
+    let tmp = tempfile::tempdir().unwrap();
+    let volume = mirrored_volume();
+    let map = tmp.path().join("seg.nii");
+    write(&map, &nifti::encode(&volume, false).unwrap());
+    let out_dir = tmp.path().join("meshes");
+    let combined = tmp.path().join("all.ply");
+    let run = destair(&[
+        "extract",
+        map.to_str().unwrap(),
+        "--out",
+        out_dir.to_str().unwrap(),
+        "--combined",
+        combined.to_str().unwrap(),
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    // Parse the binary PLY by hand: x y z floats, then faces with two int properties.
+    let bytes = std::fs::read(&combined).unwrap();
+    let end = bytes
+        .windows(11)
+        .position(|w| w == b"end_header\n")
+        .unwrap()
+        + 11;
+    let header = String::from_utf8_lossy(&bytes[..end]);
+    assert!(header.contains("comment SPACE=LPS"), "{header}");
+    assert!(
+        header.contains("property int inner_label\nproperty int outer_label\nend_header"),
+        "{header}"
+    );
+    let count = |what: &str| -> usize {
+        header
+            .lines()
+            .find_map(|l| l.strip_prefix(&format!("element {what} ")))
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    let (nv, nf) = (count("vertex"), count("face"));
+    let faces = &bytes[end + 12 * nv..];
+    assert_eq!(faces.len(), nf * 21);
+    let int = |b: &[u8]| i32::from_le_bytes(b.try_into().unwrap());
+    let vertex = |v: usize| -> [f64; 3] {
+        std::array::from_fn(|k| {
+            let at = end + 12 * v + 4 * k;
+            f32::from_le_bytes(bytes[at..at + 4].try_into().unwrap()) as f64
+        })
+    };
+    let mut per_label = std::collections::BTreeMap::<i32, usize>::new();
+    // Signed volume per label from its share, turned where it is the outer side: positive
+    // when every normal points from inner to outer.
+    let mut volume_of = std::collections::BTreeMap::<i32, f64>::new();
+    for f in faces.chunks(21) {
+        assert_eq!(f[0], 3);
+        let (inner, outer) = (int(&f[13..17]), int(&f[17..21]));
+        assert_ne!(inner, outer);
+        let [a, b, c] = [1, 5, 9].map(|o| vertex(int(&f[o..o + 4]) as usize));
+        let det = a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+            + a[2] * (b[0] * c[1] - b[1] * c[0]);
+        *volume_of.entry(inner).or_default() += det / 6.0;
+        *volume_of.entry(outer).or_default() -= det / 6.0;
+        for l in [inner, outer] {
+            *per_label.entry(l).or_default() += 1;
+        }
+    }
+    // Each structure's own surface is exactly its share of the interfaces.
+    let opts = ReadOptions::default();
+    for (value, n) in &per_label {
+        if *value == 0 {
+            continue;
+        }
+        let own = read_mesh(&out_dir.join(format!("label_{value}.ply")), &opts).unwrap();
+        assert_eq!(own.mesh.n_triangles(), *n, "label {value}");
+        let want = destair::mesh::geometry::signed_volume(&own.mesh);
+        let got = volume_of[value];
+        assert!(
+            want > 0.0 && (got - want).abs() < 1e-3 * want,
+            "label {value}: {got} vs {want}"
+        );
+    }
+    assert_eq!(per_label.keys().copied().collect::<Vec<_>>(), [0, 1, 2, 7]);
+}
