@@ -354,7 +354,7 @@ pub fn context(triangles: usize, repeat: usize) -> ContextBench {
     }
 }
 
-/// Results of `destair bench labelmap`.
+/// Results of `destair bench extract`.
 #[derive(Debug, Serialize)]
 pub struct LabelMapBench {
     pub dims: [usize; 3],
@@ -374,7 +374,7 @@ pub struct LabelMapBench {
 
 /// A 512 x 512 x 300 u8 label map at 0.8 x 0.8 x 1.5 mm with 12 touching labels filling a
 /// ball (the reference volume), written to `dir` and read back `repeat` times.
-pub fn labelmap(dir: &Path, repeat: usize) -> std::io::Result<LabelMapBench> {
+pub fn labelmap(dir: &Path, repeat: usize, keep: bool) -> std::io::Result<LabelMapBench> {
     use crate::volume::{nifti, read_label_map, Grid, LabelVolume, Space};
     let dims = [512usize, 512, 300];
     let grid = Grid::axis_aligned([0.8, 0.8, 1.5], [0.0; 3], Space::Lps);
@@ -418,7 +418,9 @@ pub fn labelmap(dir: &Path, repeat: usize) -> std::io::Result<LabelMapBench> {
         let bytes = nifti::encode(&volume, gz).map_err(std::io::Error::other)?;
         crate::io::write_atomically(&path, |w| w.write_all(&bytes))?;
         let (s, read) = best_of(repeat, || read_label_map(&path, Space::Lps));
-        let _ = std::fs::remove_file(&path);
+        if !keep {
+            let _ = std::fs::remove_file(&path);
+        }
         read.map_err(|e| std::io::Error::other(e.to_string()))?;
         if gz {
             out.gz_bytes = bytes.len() as u64;

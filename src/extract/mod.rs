@@ -18,7 +18,7 @@
 mod cell;
 pub mod report;
 
-use cell::{Template, Vertices, KIND_APEX, KIND_EDGE, KIND_FACE};
+use cell::{Template, KIND_APEX};
 
 use crate::mesh::Mesh;
 use crate::volume::LabelVolume;
@@ -51,14 +51,17 @@ pub struct Interfaces {
 /// count.
 const SLAB: i64 = 4;
 
-/// What one slab of cells produced: its vertices (global keys, first-seen order) and triangles
-/// over them.
+/// What one slab of cells produced: its vertices (first-seen order) and triangles over them,
+/// and the vertices on its bottom and top planes, which it shares with the slabs next to it.
 struct SlabOutput {
-    keys: Vec<u64>,
     positions: Vec<[f64; 3]>,
     triangles: Vec<[u32; 3]>,
     outer_apex: Vec<u32>,
     sides: Vec<[u16; 2]>,
+    /// (local vertex, key) of vertices on the bottom plane, in local order.
+    bottom: Vec<(u32, u64)>,
+    /// (key, local vertex) of vertices on the top plane, sorted by key.
+    top: Vec<(u64, u32)>,
 }
 
 /// Extracts every interface of `volume` (labels outside the volume count as background, so
@@ -75,27 +78,88 @@ pub fn interfaces(volume: &LabelVolume) -> Interfaces {
             slab(volume, k0..(k0 + SLAB).min(nz))
         })
         .collect();
-    let mut index: FxHashMap<u64, u32> = FxHashMap::default();
-    let mut out = Interfaces::default();
-    for slab in slabs {
-        let map: Vec<u32> = slab
-            .keys
-            .iter()
-            .zip(&slab.positions)
-            .map(|(&key, &p)| {
-                let next = out.positions.len() as u32;
-                *index.entry(key).or_insert_with(|| {
-                    out.positions.push(p);
-                    next
-                })
-            })
-            .collect();
-        out.triangles
-            .extend(slab.triangles.iter().map(|t| t.map(|v| map[v as usize])));
-        out.outer_apex
-            .extend(slab.outer_apex.iter().map(|&v| map[v as usize]));
-        out.sides.extend(slab.sides);
+    // Vertex numbers: a slab's vertices in its own order, except those on its bottom plane,
+    // which are the previous slab's top-plane vertices (the same grid elements).
+    let mut maps: Vec<Vec<u32>> = Vec::with_capacity(slabs.len());
+    let mut first_new: Vec<u32> = Vec::with_capacity(slabs.len());
+    let mut next = 0u32;
+    for (s, slab) in slabs.iter().enumerate() {
+        first_new.push(next);
+        let mut map = vec![u32::MAX; slab.positions.len()];
+        if s > 0 {
+            let (prev, prev_map) = (&slabs[s - 1], &maps[s - 1]);
+            for &(local, key) in &slab.bottom {
+                if let Ok(at) = prev.top.binary_search_by_key(&key, |&(k, _)| k) {
+                    map[local as usize] = prev_map[prev.top[at].1 as usize];
+                }
+            }
+        }
+        for m in &mut map {
+            if *m == u32::MAX {
+                *m = next;
+                next += 1;
+            }
+        }
+        maps.push(map);
     }
+    // Concatenated in parallel: every slab writes its own stretch of the outputs.
+    let new_counts: Vec<usize> = maps
+        .iter()
+        .zip(&first_new)
+        .map(|(map, &first)| map.iter().filter(|&&g| g >= first).count())
+        .collect();
+    let tri_counts: Vec<usize> = slabs.iter().map(|s| s.triangles.len()).collect();
+    let positions = concat(&new_counts, |s, out: &mut [[f64; 3]]| {
+        let first = first_new[s];
+        let new = slabs[s]
+            .positions
+            .iter()
+            .zip(&maps[s])
+            .filter(|(_, &g)| g >= first);
+        for (dst, (p, _)) in out.iter_mut().zip(new) {
+            *dst = *p;
+        }
+    });
+    let triangles = concat(&tri_counts, |s, out: &mut [[u32; 3]]| {
+        for (dst, t) in out.iter_mut().zip(&slabs[s].triangles) {
+            *dst = t.map(|v| maps[s][v as usize]);
+        }
+    });
+    let outer_apex = concat(&tri_counts, |s, out: &mut [u32]| {
+        for (dst, &v) in out.iter_mut().zip(&slabs[s].outer_apex) {
+            *dst = maps[s][v as usize];
+        }
+    });
+    let sides = concat(&tri_counts, |s, out: &mut [[u16; 2]]| {
+        out.copy_from_slice(&slabs[s].sides);
+    });
+    Interfaces {
+        positions,
+        triangles,
+        sides,
+        outer_apex,
+    }
+}
+
+/// One vector made of parts of the given lengths, each filled by `fill(part, stretch)` in
+/// parallel. Zeroed allocation costs nothing extra: fresh pages are zero already.
+fn concat<T: Copy + Default + Send + Sync>(
+    lens: &[usize],
+    fill: impl Fn(usize, &mut [T]) + Sync,
+) -> Vec<T> {
+    use rayon::prelude::*;
+    let mut out = vec![T::default(); lens.iter().sum()];
+    let mut stretches = Vec::with_capacity(lens.len());
+    let mut rest = out.as_mut_slice();
+    for &n in lens {
+        let (stretch, tail) = rest.split_at_mut(n);
+        stretches.push(stretch);
+        rest = tail;
+    }
+    stretches
+        .into_par_iter()
+        .enumerate()
+        .for_each(|(s, stretch)| fill(s, stretch));
     out
 }
 
@@ -121,33 +185,56 @@ fn slab(volume: &LabelVolume, ks: std::ops::Range<i64>) -> SlabOutput {
     let (px, py) = (nx + 2, ny + 2);
     let point_id =
         |i: i64, j: i64, k: i64| -> u64 { ((i + 1) + px * ((j + 1) + py * (k + 1))) as u64 };
-    let mut verts = Vertices {
-        index: FxHashMap::default(),
+    let (bottom, top) = (ks.start as f64, ks.end as f64);
+    // Vertices on grid edges and faces, by key; a slab's surface is small enough for a hash
+    // map that stays in cache (dense per-plane tables were slower: sparse, scattered access).
+    let mut index: FxHashMap<u64, u32> = FxHashMap::default();
+    let mut out = SlabOutput {
         positions: Vec::new(),
+        triangles: Vec::new(),
+        outer_apex: Vec::new(),
+        sides: Vec::new(),
+        bottom: Vec::new(),
+        top: Vec::new(),
     };
-    let mut out = Interfaces::default();
     let mut templates: FxHashMap<u32, Template> = FxHashMap::default();
     let mut ids: Vec<u32> = Vec::with_capacity(32);
+    let mut flags: Vec<u8> = vec![0; (nx.max(1) - 1) as usize];
     for k in ks {
         for j in -1..ny {
             let rows = [row(j, k), row(j + 1, k), row(j, k + 1), row(j + 1, k + 1)];
             if rows.iter().all(Option::is_none) {
                 continue;
             }
-            // Inside the volume, cells whose four rows hold one label are skipped without
-            // building their corners.
+            // Inside the volume, cells whose eight corners hold one label are skipped: a
+            // flag per cell, computed over the four rows in one vectorisable pass, and runs of
+            // unflagged cells passed eight at a time.
             let full = match rows {
                 [Some(a), Some(b), Some(c), Some(d)] => Some([a, b, c, d]),
                 _ => None,
             };
-            for i in -1..nx {
-                if let Some(r) = full {
-                    if i >= 0 && i + 1 < nx {
-                        let (x, y) = (i as usize, i as usize + 1);
-                        let v = r[0][x];
-                        if r.iter().all(|row| row[x] == v && row[y] == v) {
-                            continue;
+            if let Some(r) = full {
+                mixed_cells(r, &mut flags);
+            }
+            let mut next_i = -1;
+            while next_i < nx {
+                let i = next_i;
+                next_i += 1;
+                if full.is_some() && i >= 0 && i + 1 < nx {
+                    let x = i as usize;
+                    if flags[x] == 0 {
+                        // Skip to the next flagged cell.
+                        let mut y = x + 1;
+                        while y + 8 <= flags.len()
+                            && u64::from_ne_bytes(flags[y..y + 8].try_into().unwrap_or([1; 8])) == 0
+                        {
+                            y += 8;
                         }
+                        while y < flags.len() && flags[y] == 0 {
+                            y += 1;
+                        }
+                        next_i = y as i64;
+                        continue;
                     }
                 }
                 // Corner c = dx + 2 dy + 4 dz: row dy + 2 dz, position i + dx.
@@ -173,18 +260,29 @@ fn slab(volume: &LabelVolume, ks: std::ops::Range<i64>) -> SlabOutput {
                         k + ((c >> 2) & 1) as i64,
                     )
                 };
-                let cell_key = point_id(i, j, k);
                 ids.clear();
                 for &(local, p) in &template.vertices {
-                    let global = match local & 3 {
-                        KIND_EDGE | KIND_FACE => {
-                            let v = local >> 2;
-                            (((gid(v / 3) * 3) + v % 3) << 2) | (local & 3)
-                        }
-                        _ => (cell_key << 12) | (local >> 2) << 2 | KIND_APEX,
-                    };
                     let at = [p[0] + i as f64, p[1] + j as f64, p[2] + k as f64];
-                    ids.push(verts.get(global, || at));
+                    if local & 3 == KIND_APEX {
+                        // A cell's own branching point: no other cell has it.
+                        ids.push(out.positions.len() as u32);
+                        out.positions.push(at);
+                        continue;
+                    }
+                    let v = local >> 2;
+                    let global = (((gid(v / 3) * 3) + v % 3) << 2) | (local & 3);
+                    let next = out.positions.len() as u32;
+                    let id = *index.entry(global).or_insert(next);
+                    if id == next {
+                        out.positions.push(at);
+                        // On the slab's bottom or top plane: shared with the next slab.
+                        if at[2] == bottom {
+                            out.bottom.push((id, global));
+                        } else if at[2] == top {
+                            out.top.push((global, id));
+                        }
+                    }
+                    ids.push(id);
                 }
                 for t in &template.triangles {
                     out.triangles.push(t.corners.map(|x| ids[x as usize]));
@@ -194,16 +292,23 @@ fn slab(volume: &LabelVolume, ks: std::ops::Range<i64>) -> SlabOutput {
             }
         }
     }
-    let mut keys = vec![0u64; verts.positions.len()];
-    for (&key, &at) in &verts.index {
-        keys[at as usize] = key;
-    }
-    SlabOutput {
-        keys,
-        positions: verts.positions,
-        triangles: out.triangles,
-        outer_apex: out.outer_apex,
-        sides: out.sides,
+    out.top.sort_unstable();
+    out
+}
+
+/// For the cells between four full rows (x from 0 to nx - 2), 1 where the cell's eight
+/// corners do not all hold one label. Branch-free over the row, so the compiler vectorises it.
+fn mixed_cells(rows: [&[u16]; 4], flags: &mut [u8]) {
+    let [a, b, c, d] = rows;
+    let n = flags.len();
+    // Column x differs within itself, or from column x + 1 (in row a; the columns themselves
+    // cover the other rows).
+    let column = |x: usize| ((a[x] != b[x]) | (a[x] != c[x]) | (a[x] != d[x])) as u8;
+    let mut prev = if n > 0 { column(0) } else { 0 };
+    for x in 0..n {
+        let next = column(x + 1);
+        flags[x] = prev | next | (a[x] != a[x + 1]) as u8;
+        prev = next;
     }
 }
 
@@ -294,10 +399,20 @@ fn assemble(
             buckets[l as usize].push(t as u32);
         }
     }
+    // One vertex map per thread, reset after each label (only the entries it set), instead of
+    // a fresh one per label.
+    let pool: Vec<std::sync::Mutex<Vec<u32>>> = (0..rayon::current_num_threads().max(1))
+        .map(|_| std::sync::Mutex::new(Vec::new()))
+        .collect();
     (1..=n_labels as u16)
         .into_par_iter()
         .map(|label| {
-            let mut local = vec![u32::MAX; all.positions.len()];
+            let slot = rayon::current_thread_index().unwrap_or(0) % pool.len();
+            let mut local = pool[slot].lock().unwrap_or_else(|e| e.into_inner());
+            if local.len() != all.positions.len() {
+                *local = vec![u32::MAX; all.positions.len()];
+            }
+            let mut used: Vec<u32> = Vec::new();
             let mut positions = Vec::new();
             let mut triangles = Vec::with_capacity(buckets[label as usize].len());
             for &t in &buckets[label as usize] {
@@ -315,10 +430,14 @@ fn assemble(
                 triangles.push(tri.map(|v| {
                     if local[v as usize] == u32::MAX {
                         local[v as usize] = positions.len() as u32;
+                        used.push(v);
                         positions.push(to_mm(all.positions[v as usize]).map(|x| x as f32));
                     }
                     local[v as usize]
                 }));
+            }
+            for v in used {
+                local[v as usize] = u32::MAX;
             }
             let mesh = Mesh::new(positions, triangles).unwrap_or_default();
             LabelSurface { label, mesh }

@@ -186,8 +186,10 @@ pub fn process_case(plan: &Plan, case: LoadedCase) -> CaseOutput {
     // Label maps: every label becomes a structure, beside the mesh files.
     let mut label_map_infos = Vec::new();
     let mut all: Vec<LoadedFile> = Vec::new();
+    let had_label_maps = !case.label_maps.is_empty();
     if case_errors.is_empty() {
-        for (index, loaded) in case.label_maps.iter().enumerate() {
+        // Each volume is dropped as soon as its surfaces are out (it is the case's largest part).
+        for (index, loaded) in case.label_maps.into_iter().enumerate() {
             let map = match &loaded.map {
                 Ok(map) => map,
                 Err(e) => {
@@ -196,7 +198,7 @@ pub fn process_case(plan: &Plan, case: LoadedCase) -> CaseOutput {
                 }
             };
             let t0 = Instant::now();
-            let (structures, info) = label_structures(plan, index, loaded, map);
+            let (structures, info) = label_structures(plan, index, &loaded, map);
             timings.insert(
                 format!("extract {}", loaded.file),
                 serde_json::json!(t0.elapsed().as_secs_f64()),
@@ -286,7 +288,7 @@ pub fn process_case(plan: &Plan, case: LoadedCase) -> CaseOutput {
             .filter_map(|s| s.error.as_ref().map(|e| format!("{}: {e}", s.name))),
     );
     if errors.is_empty() && all.is_empty() {
-        errors.push(if case.label_maps.is_empty() {
+        errors.push(if !had_label_maps {
             "the case holds no meshes".into()
         } else {
             "the case's label maps hold no labels (every voxel is background)".into()
