@@ -5,6 +5,7 @@
 
 pub mod analysis;
 pub mod extract;
+pub mod hugepages;
 pub mod io;
 pub mod job;
 pub mod mesh;

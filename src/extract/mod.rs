@@ -71,11 +71,12 @@ pub fn interfaces(volume: &LabelVolume) -> Interfaces {
     use rayon::prelude::*;
     let nz = volume.dims[2] as i64;
     let n_slabs = (nz + 1 + SLAB - 1) / SLAB;
+    // Cell templates are derived on first use and kept per worker across its slabs.
     let slabs: Vec<SlabOutput> = (0..n_slabs)
         .into_par_iter()
-        .map(|s| {
+        .map_init(FxHashMap::default, |templates, s| {
             let k0 = -1 + s * SLAB;
-            slab(volume, k0..(k0 + SLAB).min(nz))
+            slab(volume, k0..(k0 + SLAB).min(nz), templates)
         })
         .collect();
     // Vertex numbers: a slab's vertices in its own order, except those on its bottom plane,
@@ -148,7 +149,7 @@ fn concat<T: Copy + Default + Send + Sync>(
     fill: impl Fn(usize, &mut [T]) + Sync,
 ) -> Vec<T> {
     use rayon::prelude::*;
-    let mut out = vec![T::default(); lens.iter().sum()];
+    let mut out = crate::hugepages::zeroed_vec(lens.iter().sum());
     let mut stretches = Vec::with_capacity(lens.len());
     let mut rest = out.as_mut_slice();
     for &n in lens {
@@ -164,7 +165,11 @@ fn concat<T: Copy + Default + Send + Sync>(
 }
 
 /// The cells whose lower corner lies in the z range `ks` (from -1: the pad below the volume).
-fn slab(volume: &LabelVolume, ks: std::ops::Range<i64>) -> SlabOutput {
+fn slab(
+    volume: &LabelVolume,
+    ks: std::ops::Range<i64>,
+    templates: &mut FxHashMap<u32, Template>,
+) -> SlabOutput {
     let [nx, ny, nz] = volume.dims.map(|d| d as i64);
     // A row of voxels along x, or none outside the volume (background).
     let row = |j: i64, k: i64| -> Option<&[u16]> {
@@ -197,7 +202,6 @@ fn slab(volume: &LabelVolume, ks: std::ops::Range<i64>) -> SlabOutput {
         bottom: Vec::new(),
         top: Vec::new(),
     };
-    let mut templates: FxHashMap<u32, Template> = FxHashMap::default();
     let mut ids: Vec<u32> = Vec::with_capacity(32);
     let mut flags: Vec<u8> = vec![0; (nx.max(1) - 1) as usize];
     for k in ks {

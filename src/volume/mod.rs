@@ -206,7 +206,7 @@ impl LabelVolume {
             .chain(keys.iter().map(|&k| counts_by_key[k]))
             .collect();
         // Pass 2: map every voxel through the table.
-        let mut voxels = vec![0u16; n];
+        let mut voxels = crate::hugepages::zeroed_vec::<u16>(n);
         voxels
             .par_chunks_mut(BLOCK)
             .enumerate()
