@@ -487,3 +487,49 @@ fn combined_interfaces_carry_the_labels_of_both_sides() {
     }
     assert_eq!(per_label.keys().copied().collect::<Vec<_>>(), [0, 1, 2, 7]);
 }
+
+#[test]
+fn extract_constrained_surfaces_from_the_command_line() {
+    let tmp = tempfile::tempdir().unwrap();
+    phantom(&tmp.path().join("p"), &["--rotate-x", "15"]);
+    let map = tmp.path().join("p/segmentation.nii.gz");
+    let out = tmp.path().join("smooth");
+    let run = destair(&[
+        "extract",
+        map.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--surface",
+        "constrained",
+    ]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("extract.json")).unwrap()).unwrap();
+    assert_eq!(report["surface"], "constrained");
+    // sigma: twice the smallest spacing (0.45 mm).
+    let sigma = report["constrained"]["sigma_mm"].as_f64().unwrap();
+    assert!((sigma - 0.9).abs() < 1e-5, "{sigma}");
+    for l in report["labels"].as_array().unwrap() {
+        assert_eq!(l["closed_oriented_manifold"], true, "{l}");
+        let (m, v) = (
+            l["mesh_volume_mm3"].as_f64().unwrap(),
+            l["voxel_volume_mm3"].as_f64().unwrap(),
+        );
+        assert!((m / v - 1.0).abs() < 0.1, "{l}");
+    }
+    for bad in [
+        vec!["--surface", "constrained", "--sigma-mm", "0"],
+        vec!["--sigma-mm", "1"],
+    ] {
+        let mut args = vec![
+            "extract",
+            map.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend(bad);
+        let r = destair(&args);
+        assert_eq!(r.status.code(), Some(2), "{}", stderr(&r));
+        assert!(stderr(&r).contains("--sigma-mm"), "{}", stderr(&r));
+    }
+}

@@ -20,11 +20,25 @@ pub struct Args {
     /// Mesh format: ply or stl.
     #[arg(long, value_enum, default_value_t = FormatArg::Ply)]
     format: FormatArg,
+    /// binary: vertices at cell-edge midpoints (terraced); constrained: label weights smoothed
+    /// with a Gaussian and clamped so every voxel keeps its label (thesis §6.3.2), vertices at
+    /// sub-voxel positions (smooth).
+    #[arg(long, value_enum, default_value_t = SurfaceArg::Binary)]
+    surface: SurfaceArg,
+    /// Gaussian sigma for --surface constrained (mm; default twice the smallest spacing).
+    #[arg(long)]
+    sigma_mm: Option<f64>,
     /// Also write all interfaces as one PLY with per-face `inner_label` and `outer_label` (the
     /// label values on the two sides; 0 is background), as tetrahedral meshers with regions
     /// take. Further layers of a .seg.nrrd go to FILE_layerN.ply.
     #[arg(long, value_name = "FILE.ply")]
     combined: Option<PathBuf>,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum SurfaceArg {
+    Binary,
+    Constrained,
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -78,6 +92,16 @@ fn file_stem(name: &str) -> String {
 
 pub fn exec(args: Args) -> anyhow::Result<()> {
     let space = args.space.space();
+    if let Some(s) = args.sigma_mm {
+        if !(s.is_finite() && s > 0.0) {
+            return Err(
+                UsageError(format!("--sigma-mm {s}: must be a positive number of mm")).into(),
+            );
+        }
+        if matches!(args.surface, SurfaceArg::Binary) {
+            return Err(UsageError("--sigma-mm applies to --surface constrained".into()).into());
+        }
+    }
     if args.out.exists() && !args.out.is_dir() {
         return Err(UsageError(format!(
             "{}: exists and is not a folder",
@@ -125,8 +149,23 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     let mut rows = Vec::new();
     let mut used = std::collections::BTreeSet::new();
     let t_extract = std::time::Instant::now();
+    // Every layer of a file shares one grid, so one set of parameters.
+    let constrained = matches!(args.surface, SurfaceArg::Constrained).then(|| {
+        let mut p = destair::extract::constrained::ConstrainedParams::for_volume(&map.layers[0]);
+        if let Some(s) = args.sigma_mm {
+            p.sigma_mm = s;
+        }
+        p
+    });
+    let surfaces_of = |layer: &destair::volume::LabelVolume| {
+        let mut all = destair::extract::interfaces(layer);
+        if let Some(params) = &constrained {
+            destair::extract::constrained::place_on_weights(layer, &mut all, params);
+        }
+        all
+    };
     for (layer_index, layer) in map.layers.iter().enumerate() {
-        let all = destair::extract::interfaces(layer);
+        let all = surfaces_of(layer);
         for s in destair::extract::label_surfaces(layer, &all) {
             let label = &layer.labels[s.label as usize - 1];
             let mut stem = file_stem(&label.name);
@@ -160,7 +199,7 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
                 path.with_file_name(format!("{stem}_layer{layer_index}.ply"))
             };
             super::refuse_overwriting_inputs(&path, &[args.labelmap.as_path()], false)?;
-            let all = destair::extract::interfaces(layer);
+            let all = surfaces_of(layer);
             let (mesh, sides) = destair::extract::combined_surface(layer, &all);
             let int = |v: i64| {
                 i32::try_from(v).map_err(|_| {
@@ -199,6 +238,11 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         dims: map.layers[0].dims,
         spacing_mm: g.spacing(),
         affine: g.affine(),
+        surface: match args.surface {
+            SurfaceArg::Binary => "binary".into(),
+            SurfaceArg::Constrained => "constrained".into(),
+        },
+        constrained,
         labels: rows,
         warnings: map.warnings.clone(),
     };

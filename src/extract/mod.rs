@@ -16,6 +16,7 @@
 //! rules live in `cell.rs`; this module scans the volume and assembles the surfaces.
 
 mod cell;
+pub mod constrained;
 pub mod report;
 
 use cell::{Template, KIND_APEX};
@@ -45,7 +46,16 @@ pub struct Interfaces {
     /// except where a label meets itself at a cell's branching point, which then has a copy
     /// per part of that label so that each surface stays a 2-manifold.
     pub outer_apex: Vec<u32>,
+    /// What each vertex lies on: [`VERTEX_EDGE`], [`VERTEX_FACE`] or [`VERTEX_APEX`].
+    pub kinds: Vec<u8>,
 }
+
+/// A vertex on a cell edge (between two voxel centres of different labels).
+pub const VERTEX_EDGE: u8 = 0;
+/// A branching point on a cell face, where three or four labels meet on it.
+pub const VERTEX_FACE: u8 = 1;
+/// A branching point inside a cell (the centre of a membrane's fan).
+pub const VERTEX_APEX: u8 = 2;
 
 /// Slabs of cells (along z) per parallel task. Fixed, so results do not depend on the thread
 /// count.
@@ -55,6 +65,7 @@ const SLAB: i64 = 4;
 /// and the vertices on its bottom and top planes, which it shares with the slabs next to it.
 struct SlabOutput {
     positions: Vec<[f64; 3]>,
+    kinds: Vec<u8>,
     triangles: Vec<[u32; 3]>,
     outer_apex: Vec<u32>,
     sides: Vec<[u16; 2]>,
@@ -131,6 +142,17 @@ pub fn interfaces(volume: &LabelVolume) -> Interfaces {
             *dst = maps[s][v as usize];
         }
     });
+    let kinds = concat(&new_counts, |s, out: &mut [u8]| {
+        let first = first_new[s];
+        let new = slabs[s]
+            .kinds
+            .iter()
+            .zip(&maps[s])
+            .filter(|(_, &g)| g >= first);
+        for (dst, (k, _)) in out.iter_mut().zip(new) {
+            *dst = *k;
+        }
+    });
     let sides = concat(&tri_counts, |s, out: &mut [[u16; 2]]| {
         out.copy_from_slice(&slabs[s].sides);
     });
@@ -139,6 +161,7 @@ pub fn interfaces(volume: &LabelVolume) -> Interfaces {
         triangles,
         sides,
         outer_apex,
+        kinds,
     }
 }
 
@@ -196,6 +219,7 @@ fn slab(
     let mut index: FxHashMap<u64, u32> = FxHashMap::default();
     let mut out = SlabOutput {
         positions: Vec::new(),
+        kinds: Vec::new(),
         triangles: Vec::new(),
         outer_apex: Vec::new(),
         sides: Vec::new(),
@@ -271,6 +295,7 @@ fn slab(
                         // A cell's own branching point: no other cell has it.
                         ids.push(out.positions.len() as u32);
                         out.positions.push(at);
+                        out.kinds.push(VERTEX_APEX);
                         continue;
                     }
                     let v = local >> 2;
@@ -279,6 +304,13 @@ fn slab(
                     let id = *index.entry(global).or_insert(next);
                     if id == next {
                         out.positions.push(at);
+                        out.kinds.push(if local & 3 == KIND_APEX {
+                            VERTEX_APEX
+                        } else if local & 3 == cell::KIND_FACE {
+                            VERTEX_FACE
+                        } else {
+                            VERTEX_EDGE
+                        });
                         // On the slab's bottom or top plane: shared with the next slab.
                         if at[2] == bottom {
                             out.bottom.push((id, global));

@@ -32,6 +32,11 @@ pub struct ExtractReport {
     pub spacing_mm: [f64; 3],
     /// Index to world (mm), row by row.
     pub affine: [[f64; 4]; 4],
+    /// "binary" (vertices at cell-edge midpoints) or "constrained" (§6.3.2).
+    pub surface: String,
+    /// The constrained smoothing's parameters, for `surface = "constrained"`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub constrained: Option<crate::extract::constrained::ConstrainedParams>,
     pub labels: Vec<ExtractedLabel>,
     pub warnings: Vec<String>,
 }
