@@ -71,25 +71,6 @@ fn parse_labels(s: &str) -> Result<LabelNames, String> {
         .map(LabelNames)
 }
 
-/// A name usable as a file stem: path separators and control characters replaced.
-fn file_stem(name: &str) -> String {
-    let s: String = name
-        .chars()
-        .map(|c| {
-            if c == '/' || c == '\\' || c.is_control() {
-                '_'
-            } else {
-                c
-            }
-        })
-        .collect();
-    if s.is_empty() || s == "." || s == ".." {
-        "label".into()
-    } else {
-        s
-    }
-}
-
 pub fn exec(args: Args) -> anyhow::Result<()> {
     let space = args.space.space();
     if let Some(s) = args.sigma_mm {
@@ -168,7 +149,7 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         let all = surfaces_of(layer);
         for s in destair::extract::label_surfaces(layer, &all) {
             let label = &layer.labels[s.label as usize - 1];
-            let mut stem = file_stem(&label.name);
+            let mut stem = destair::volume::label_file_stem(&label.name, label.value);
             if !used.insert(stem.clone()) {
                 stem = format!("{stem}_{}", label.value);
                 used.insert(stem.clone());

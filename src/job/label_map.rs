@@ -173,21 +173,7 @@ fn structure_name(plan: &Plan, value: i64, file_name: &str) -> String {
         .label_names
         .get(&value)
         .map_or(file_name, String::as_str);
-    let s: String = name
-        .chars()
-        .map(|c| {
-            if c == '/' || c == '\\' || c.is_control() {
-                '_'
-            } else {
-                c
-            }
-        })
-        .collect();
-    if s.is_empty() || s == "." || s == ".." {
-        format!("label_{value}")
-    } else {
-        s
-    }
+    crate::volume::label_file_stem(name, value)
 }
 
 /// Extracts every label of every layer of a read label map (the `index`-th of its case) as a

@@ -254,6 +254,26 @@ pub struct LabelMapError {
     pub message: String,
 }
 
+/// A label's name made safe as a file stem (path separators and control characters become
+/// `_`); `label_<value>` when nothing usable is left.
+pub fn label_file_stem(name: &str, value: i64) -> String {
+    let s: String = name
+        .chars()
+        .map(|c| {
+            if c == '/' || c == '\\' || c.is_control() {
+                '_'
+            } else {
+                c
+            }
+        })
+        .collect();
+    if s.is_empty() || s == "." || s == ".." {
+        format!("label_{value}")
+    } else {
+        s
+    }
+}
+
 /// Which label-map format a path names, by its ending.
 pub fn is_label_map(path: &Path) -> bool {
     let name = path

@@ -119,35 +119,28 @@ fn write_ply_to(
     )
 }
 
-fn check_face_properties(mesh: &Mesh, props: &[(&str, &[i32])]) -> Result<(), WriteError> {
-    for (i, (name, values)) in props.iter().enumerate() {
-        let bad = |message: String| WriteError::InvalidProperty {
-            name: name.to_string(),
-            message,
-        };
-        if name.is_empty() || name.chars().any(|c| c.is_whitespace() || c.is_control()) {
-            return Err(bad("names must be non-empty and without spaces".into()));
-        }
-        if *name == "vertex_indices" || props[..i].iter().any(|(n, _)| n == name) {
-            return Err(bad("name is used twice".into()));
-        }
-        if values.len() != mesh.n_triangles() {
-            return Err(bad(format!(
-                "has {} values but the mesh has {} faces",
-                values.len(),
-                mesh.n_triangles()
-            )));
-        }
-    }
-    Ok(())
-}
-
 fn one_line(s: &str) -> String {
     s.replace(['\n', '\r'], " ")
 }
 
 fn check_properties(mesh: &Mesh, props: &[(&str, &[f32])]) -> Result<(), WriteError> {
-    for (i, (name, values)) in props.iter().enumerate() {
+    let named: Vec<(&str, usize)> = props.iter().map(|(n, v)| (*n, v.len())).collect();
+    check_named(&named, &["x", "y", "z"], mesh.n_vertices(), "vertices")
+}
+
+fn check_face_properties(mesh: &Mesh, props: &[(&str, &[i32])]) -> Result<(), WriteError> {
+    let named: Vec<(&str, usize)> = props.iter().map(|(n, v)| (*n, v.len())).collect();
+    check_named(&named, &["vertex_indices"], mesh.n_triangles(), "faces")
+}
+
+/// Property names usable in a header (no spaces, not taken) and one value per element.
+fn check_named(
+    props: &[(&str, usize)],
+    taken: &[&str],
+    n: usize,
+    elements: &str,
+) -> Result<(), WriteError> {
+    for (i, &(name, len)) in props.iter().enumerate() {
         let bad = |message: String| WriteError::InvalidProperty {
             name: name.to_string(),
             message,
@@ -155,14 +148,12 @@ fn check_properties(mesh: &Mesh, props: &[(&str, &[f32])]) -> Result<(), WriteEr
         if name.is_empty() || name.chars().any(|c| c.is_whitespace() || c.is_control()) {
             return Err(bad("names must be non-empty and without spaces".into()));
         }
-        if ["x", "y", "z"].contains(name) || props[..i].iter().any(|(n, _)| n == name) {
+        if taken.contains(&name) || props[..i].iter().any(|(n, _)| *n == name) {
             return Err(bad("name is used twice".into()));
         }
-        if values.len() != mesh.n_vertices() {
+        if len != n {
             return Err(bad(format!(
-                "has {} values but the mesh has {} vertices",
-                values.len(),
-                mesh.n_vertices()
+                "has {len} values but the mesh has {n} {elements}"
             )));
         }
     }
