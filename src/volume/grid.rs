@@ -212,11 +212,25 @@ impl Grid {
         })
     }
 
-    /// Index of the stack axis (largest spacing; the last axis, the slice axis, on ties).
+    /// Index of the stack axis (see [`stack_index`]).
     pub fn stack_index_axis(&self) -> usize {
-        let s = self.spacing();
-        (0..3).fold(2, |best, c| if s[c] > s[best] { c } else { best })
+        stack_index(self.spacing())
     }
+}
+
+/// The index axis across the slices: the one with the largest spacing, and the last one (the
+/// slice axis by convention) on ties.
+pub fn stack_index(spacing: [f64; 3]) -> usize {
+    (0..3).fold(
+        2,
+        |best, c| {
+            if spacing[c] > spacing[best] {
+                c
+            } else {
+                best
+            }
+        },
+    )
 }
 
 /// The rotation matrix of the unit quaternion (a, b, c, d) (NIfTI's qform convention).
