@@ -57,39 +57,59 @@ fn kernel(volume: &LabelVolume, sigma_mm: f64) -> [[f32; 5]; 3] {
     })
 }
 
-/// The clamped smoothed weight of dense label `label` at voxel (i, j, k).
-fn weight(
+/// The clamped smoothed weights of dense labels `a` and `b` at voxel `v`, in one pass over the
+/// kernel (voxels outside the volume are background).
+fn weights(
     volume: &LabelVolume,
     g: &[[f32; 5]; 3],
     margin: f32,
-    label: u16,
-    [i, j, k]: [i64; 3],
-) -> f32 {
+    [a, b]: [u16; 2],
+    v: [i64; 3],
+) -> [f32; 2] {
     let [nx, ny, nz] = volume.dims.map(|d| d as i64);
-    let label_at = |x: i64, y: i64, z: i64| -> u16 {
-        if x < 0 || y < 0 || z < 0 || x >= nx || y >= ny || z >= nz {
-            0
-        } else {
-            volume.voxels[(x + nx * (y + ny * z)) as usize]
-        }
-    };
-    let mut w = 0f32;
+    let inside = (0..3).all(|k| v[k] >= RADIUS && v[k] + RADIUS < [nx, ny, nz][k]);
+    let mut w = [0f32; 2];
     for dz in -RADIUS..=RADIUS {
         let gz = g[2][(dz + RADIUS) as usize];
         for dy in -RADIUS..=RADIUS {
             let gyz = gz * g[1][(dy + RADIUS) as usize];
-            for dx in -RADIUS..=RADIUS {
-                if label_at(i + dx, j + dy, k + dz) == label {
-                    w += gyz * g[0][(dx + RADIUS) as usize];
+            let (y, z) = (v[1] + dy, v[2] + dz);
+            if inside {
+                // The whole row lies in the volume: no bounds to check.
+                let start = (v[0] - RADIUS + nx * (y + ny * z)) as usize;
+                let row = &volume.voxels[start..start + 5];
+                for (gx, &l) in g[0].iter().zip(row) {
+                    w[0] += if l == a { gyz * gx } else { 0.0 };
+                    w[1] += if l == b { gyz * gx } else { 0.0 };
                 }
+                continue;
+            }
+            for dx in -RADIUS..=RADIUS {
+                let x = v[0] + dx;
+                let l = if x < 0 || y < 0 || z < 0 || x >= nx || y >= ny || z >= nz {
+                    0
+                } else {
+                    volume.voxels[(x + nx * (y + ny * z)) as usize]
+                };
+                let gx = g[0][(dx + RADIUS) as usize];
+                w[0] += if l == a { gyz * gx } else { 0.0 };
+                w[1] += if l == b { gyz * gx } else { 0.0 };
             }
         }
     }
-    if label_at(i, j, k) == label {
-        w.max(0.5 + margin)
+    let own = if (0..3).all(|k| v[k] >= 0 && v[k] < [nx, ny, nz][k]) {
+        volume.voxels[(v[0] + nx * (v[1] + ny * v[2])) as usize]
     } else {
-        w.min(0.5 - margin)
-    }
+        0
+    };
+    let clamp = |w: f32, label: u16| {
+        if own == label {
+            w.max(0.5 + margin)
+        } else {
+            w.min(0.5 - margin)
+        }
+    };
+    [clamp(w[0], a), clamp(w[1], b)]
 }
 
 /// Moves the vertices of `all` (extracted from `volume`) to where the two largest constrained
@@ -124,8 +144,10 @@ pub fn place_on_weights(volume: &LabelVolume, all: &mut Interfaces, params: &Con
                 return;
             }
             // d = w_a - w_b, positive at lo and negative at hi after the clamp.
-            let d_lo = weight(volume, &g, margin, a, lo) - weight(volume, &g, margin, b, lo);
-            let d_hi = weight(volume, &g, margin, a, hi) - weight(volume, &g, margin, b, hi);
+            let [wa, wb] = weights(volume, &g, margin, [a, b], lo);
+            let d_lo = wa - wb;
+            let [wa, wb] = weights(volume, &g, margin, [a, b], hi);
+            let d_hi = wa - wb;
             let denominator = d_lo - d_hi;
             if denominator > 0.0 && d_lo >= 0.0 {
                 let t = (d_lo / denominator).clamp(0.0, 1.0) as f64;
