@@ -145,9 +145,18 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         }
         all
     };
+    // Interfaces kept for --combined, which writes the same surfaces as one mesh.
+    let mut kept = Vec::new();
     for (layer_index, layer) in map.layers.iter().enumerate() {
         let all = surfaces_of(layer);
-        for s in destair::extract::label_surfaces(layer, &all) {
+        let surfaces = destair::extract::label_surfaces(layer, &all);
+        if args.combined.is_some() {
+            kept.push(all);
+        }
+        // File names first (in label order, so clashes resolve the same way every time), then
+        // the labels written and measured in parallel.
+        let mut jobs = Vec::with_capacity(surfaces.len());
+        for s in surfaces {
             let label = &layer.labels[s.label as usize - 1];
             let mut stem = destair::volume::label_file_stem(&label.name, label.value);
             if !used.insert(stem.clone()) {
@@ -155,24 +164,38 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
                 used.insert(stem.clone());
             }
             let file = format!("{stem}.{ext}");
-            let path = args.out.join(&file);
-            super::refuse_overwriting_inputs(&path, &[args.labelmap.as_path()], false)?;
-            match args.format {
-                FormatArg::Ply => destair::io::ply::write_ply(&path, &s.mesh, &meta, &[])?,
-                FormatArg::Stl => destair::io::stl::write_stl(&path, &s.mesh, &meta)?,
-            }
-            rows.push(destair::extract::report::extracted_label(
-                layer_index,
-                label,
-                file,
-                &s.mesh,
-                &layer.grid,
-            ));
+            super::refuse_overwriting_inputs(
+                &args.out.join(&file),
+                &[args.labelmap.as_path()],
+                false,
+            )?;
+            jobs.push((label, file, s.mesh));
+        }
+        use rayon::prelude::*;
+        let written: Vec<anyhow::Result<_>> = jobs
+            .into_par_iter()
+            .map(|(label, file, mesh)| {
+                let path = args.out.join(&file);
+                match args.format {
+                    FormatArg::Ply => destair::io::ply::write_ply(&path, &mesh, &meta, &[])?,
+                    FormatArg::Stl => destair::io::stl::write_stl(&path, &mesh, &meta)?,
+                }
+                Ok(destair::extract::report::extracted_label(
+                    layer_index,
+                    label,
+                    file,
+                    &mesh,
+                    &layer.grid,
+                ))
+            })
+            .collect();
+        for row in written {
+            rows.push(row?);
         }
     }
     let extract_s = t_extract.elapsed().as_secs_f64();
     if let Some(path) = &args.combined {
-        for (layer_index, layer) in map.layers.iter().enumerate() {
+        for (layer_index, (layer, all)) in map.layers.iter().zip(&kept).enumerate() {
             let path = if layer_index == 0 {
                 path.clone()
             } else {
@@ -180,8 +203,7 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
                 path.with_file_name(format!("{stem}_layer{layer_index}.ply"))
             };
             super::refuse_overwriting_inputs(&path, &[args.labelmap.as_path()], false)?;
-            let all = surfaces_of(layer);
-            let (mesh, sides) = destair::extract::combined_surface(layer, &all);
+            let (mesh, sides) = destair::extract::combined_surface(layer, all);
             let int = |v: i64| {
                 i32::try_from(v).map_err(|_| {
                     UsageError(format!(
