@@ -57,6 +57,16 @@ fn kernel(volume: &LabelVolume, sigma_mm: f64) -> [[f32; 5]; 3] {
     })
 }
 
+/// The dense label at voxel `p`; background outside the volume.
+fn label_at(volume: &LabelVolume, p: [i64; 3]) -> u16 {
+    let [nx, ny, nz] = volume.dims.map(|d| d as i64);
+    if p.iter().any(|&x| x < 0) || p[0] >= nx || p[1] >= ny || p[2] >= nz {
+        0
+    } else {
+        volume.voxels[(p[0] + nx * (p[1] + ny * p[2])) as usize]
+    }
+}
+
 /// The clamped smoothed weights of dense labels `a` and `b` at voxel `v`, in one pass over the
 /// kernel (voxels outside the volume are background).
 fn weights(
@@ -85,23 +95,14 @@ fn weights(
                 continue;
             }
             for dx in -RADIUS..=RADIUS {
-                let x = v[0] + dx;
-                let l = if x < 0 || y < 0 || z < 0 || x >= nx || y >= ny || z >= nz {
-                    0
-                } else {
-                    volume.voxels[(x + nx * (y + ny * z)) as usize]
-                };
+                let l = label_at(volume, [v[0] + dx, y, z]);
                 let gx = g[0][(dx + RADIUS) as usize];
                 w[0] += if l == a { gyz * gx } else { 0.0 };
                 w[1] += if l == b { gyz * gx } else { 0.0 };
             }
         }
     }
-    let own = if (0..3).all(|k| v[k] >= 0 && v[k] < [nx, ny, nz][k]) {
-        volume.voxels[(v[0] + nx * (v[1] + ny * v[2])) as usize]
-    } else {
-        0
-    };
+    let own = label_at(volume, v);
     let clamp = |w: f32, label: u16| {
         if own == label {
             w.max(0.5 + margin)
@@ -118,14 +119,6 @@ fn weights(
 pub fn place_on_weights(volume: &LabelVolume, all: &mut Interfaces, params: &ConstrainedParams) {
     let g = kernel(volume, params.sigma_mm);
     let margin = params.margin.clamp(0.0, 0.49);
-    let [nx, ny, nz] = volume.dims.map(|d| d as i64);
-    let label_at = |p: [i64; 3]| -> u16 {
-        if p.iter().any(|&x| x < 0) || p[0] >= nx || p[1] >= ny || p[2] >= nz {
-            0
-        } else {
-            volume.voxels[(p[0] + nx * (p[1] + ny * p[2])) as usize]
-        }
-    };
     // Edge vertices: the edge runs along the one axis where the position is not a whole number.
     let kinds = &all.kinds;
     all.positions
@@ -139,7 +132,7 @@ pub fn place_on_weights(volume: &LabelVolume, all: &mut Interfaces, params: &Con
             let lo: [i64; 3] = std::array::from_fn(|a| p[a].floor() as i64);
             let mut hi = lo;
             hi[axis] += 1;
-            let (a, b) = (label_at(lo), label_at(hi));
+            let (a, b) = (label_at(volume, lo), label_at(volume, hi));
             if a == b {
                 return;
             }
