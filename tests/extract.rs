@@ -3,7 +3,7 @@
 //! share their interface triangles exactly; every voxel centre lies inside its own label's
 //! surface and outside every other (winding numbers).
 
-use destair::extract::constrained::{place_on_weights, ConstrainedParams};
+use destair::extract::constrained::{place_on_weights, LabelSmoothing, Noise, Surface, Thin};
 use destair::extract::{interfaces, label_surfaces};
 use destair::mesh::Topology;
 use destair::volume::{Grid, LabelVolume, Space};
@@ -135,13 +135,27 @@ fn consistency(constrained: bool) {
         let volume = random_volume(&mut rng, n_labels, dims, fill);
         let mut all = interfaces(&volume);
         if constrained {
-            let mut params = ConstrainedParams::for_volume(&volume);
-            // Margins from the default up: the larger, the further from voxel centres.
-            if rng.bool() {
-                params.margin = 0.02 + 0.3 * rng.f32();
-            }
+            // Per label: binary or constrained, noise and thin either way, sigma from the
+            // default up to three times the largest spacing.
+            let max_spacing = volume.grid.spacing().into_iter().fold(0.0, f64::max);
+            let smoothing: Vec<LabelSmoothing> = (0..=volume.labels.len())
+                .map(|_| LabelSmoothing {
+                    surface: if rng.usize(0..5) == 0 {
+                        Surface::Binary
+                    } else {
+                        Surface::Constrained
+                    },
+                    sigma_mm: rng.bool().then(|| 3.0 * max_spacing * rng.f64() + 1e-3),
+                    noise: if rng.bool() {
+                        Noise::Smooth
+                    } else {
+                        Noise::Keep
+                    },
+                    thin: if rng.bool() { Thin::Protect } else { Thin::Off },
+                })
+                .collect();
             let before = all.positions.clone();
-            place_on_weights(&volume, &mut all, &params);
+            place_on_weights(&volume, &mut all, &smoothing);
             moved += before
                 .iter()
                 .zip(&all.positions)
@@ -372,11 +386,13 @@ fn extract_writes_one_mesh_per_label_and_its_report() {
     assert_eq!(files, ["tumor.ply", "vein.ply", "label_3.ply"]);
     for l in report["labels"].as_array().unwrap() {
         assert_eq!(l["closed_oriented_manifold"], true, "{l}");
+        // Constrained by default: smooth, within a few percent of the voxels' volume.
+        assert_eq!(l["extraction"]["surface"], "constrained", "{l}");
         let (m, v) = (
             l["mesh_volume_mm3"].as_f64().unwrap(),
             l["voxel_volume_mm3"].as_f64().unwrap(),
         );
-        assert!((m / v - 1.0).abs() < 0.02, "{l}");
+        assert!((m / v - 1.0).abs() < 0.05, "{l}");
     }
     let tumor = destair::io::read_mesh(&out.join("tumor.ply"), &Default::default()).unwrap();
     assert_eq!(tumor.meta.space(), Some("RAS"));
@@ -412,15 +428,19 @@ fn results_do_not_depend_on_the_thread_count() {
             .build()
             .unwrap()
             .install(|| {
-                let all = interfaces(&volume);
-                label_surfaces(&volume, &all)
+                // Constrained, with noise relaxed and thin parts held (the defaults).
+                let mut all = interfaces(&volume);
+                let counts = place_on_weights(&volume, &mut all, &[]);
+                let meshes: Vec<_> = label_surfaces(&volume, &all)
                     .into_iter()
                     .map(|s| s.mesh)
-                    .collect::<Vec<_>>()
+                    .collect();
+                (counts, meshes)
             })
     };
     let one = run(1);
-    assert!(one.iter().any(|m| m.n_triangles() > 0));
+    assert!(one.1.iter().any(|m| m.n_triangles() > 0));
+    assert!(one.0.iter().any(|c| c.noise_voxels > 0), "{:?}", one.0);
     for threads in [2, 3, 7] {
         assert!(run(threads) == one, "{threads} threads");
     }
@@ -464,7 +484,7 @@ fn constrained_surfaces_are_smooth_and_keep_volume() {
     let volume = LabelVolume::from_values(dims, grid, values.into_iter()).unwrap();
     let binary = label_surfaces(&volume, &interfaces(&volume));
     let mut all = interfaces(&volume);
-    place_on_weights(&volume, &mut all, &ConstrainedParams::for_volume(&volume));
+    place_on_weights(&volume, &mut all, &[]);
     let smooth = label_surfaces(&volume, &all);
     for (b, s) in binary.iter().zip(&smooth) {
         let label = &volume.labels[b.label as usize - 1];
@@ -478,8 +498,8 @@ fn constrained_surfaces_are_smooth_and_keep_volume() {
             label.value,
             destair::mesh::geometry::signed_volume(&b.mesh)
         );
-        // The sphere's staircases go (measured 26.8 -> 9.5 degrees); the box is flat where it
-        // is not cut by the sphere, so it gains less (16.7 -> 13.2), but never loses.
+        // The sphere's staircases go (measured 26.8 -> 12.0 degrees); the box is flat where it
+        // is not cut by the sphere, so it gains less (16.7 -> 14.0), but never loses.
         let factor = if label.value == 1 { 0.5 } else { 0.9 };
         assert!(
             cs < factor * cb,
@@ -509,7 +529,7 @@ fn constrained_surfaces_halve_the_curvature_on_the_neck_phantom() {
         destair::phantom::cases::label_map_case("labelmap-neck", &Default::default()).unwrap();
     let binary = label_surfaces(&volume, &interfaces(&volume));
     let mut all = interfaces(&volume);
-    place_on_weights(&volume, &mut all, &ConstrainedParams::for_volume(&volume));
+    place_on_weights(&volume, &mut all, &[]);
     let smooth = label_surfaces(&volume, &all);
     let curvature = |m: &destair::Mesh| average_normal_curvature(m, &Topology::build(m));
     for (b, s) in binary.iter().zip(&smooth) {
@@ -555,4 +575,176 @@ fn constrained_surfaces_halve_the_curvature_on_the_neck_phantom() {
         }
     }
     assert_eq!(wrong, 0, "{wrong} voxel centres on the wrong side");
+}
+
+/// A volume of `dims` voxels of `spacing` mm whose label values come from `f(x, y, z)`.
+fn volume_of(dims: [usize; 3], spacing: [f64; 3], f: impl Fn(i64, i64, i64) -> i64) -> LabelVolume {
+    let mut values = Vec::with_capacity(dims.iter().product());
+    for z in 0..dims[2] as i64 {
+        for y in 0..dims[1] as i64 {
+            for x in 0..dims[0] as i64 {
+                values.push(f(x, y, z));
+            }
+        }
+    }
+    let grid = Grid::axis_aligned(spacing, [0.0; 3], Space::Lps);
+    LabelVolume::from_values(dims, grid, values.into_iter()).unwrap()
+}
+
+/// Enclosed volume over voxel volume of label value `value`'s constrained surface, and the
+/// number of thin voxels reported for it.
+fn kept_volume(volume: &LabelVolume, value: i64, thin: Thin) -> (f64, u64) {
+    let smoothing = LabelSmoothing {
+        thin,
+        ..LabelSmoothing::default()
+    };
+    let mut all = interfaces(volume);
+    let counts = place_on_weights(volume, &mut all, &vec![smoothing; volume.labels.len() + 1]);
+    let dense = volume.labels.iter().position(|l| l.value == value).unwrap() + 1;
+    let surface = label_surfaces(volume, &all)
+        .into_iter()
+        .find(|s| s.label as usize == dense)
+        .unwrap();
+    let voxels = volume.labels[dense - 1].n_voxels as f64 * volume.grid.voxel_volume();
+    let enclosed = destair::mesh::geometry::signed_volume(&surface.mesh);
+    (enclosed / voxels, counts[dense].thin_voxels)
+}
+
+/// Issue claim (§6.3.4): one-voxel sheets, tubes and walls keep at least half their voxel
+/// volume with `thin = "protect"`, and visibly less without it.
+#[test]
+fn thin_structures_keep_a_real_thickness_when_protected() {
+    let spacing = [0.5, 0.5, 2.0];
+    // A structure labelled in one slice only keeps most of its thickness anyway (the
+    // Gaussian hardly reaches across 2 mm slices), so nothing needs holding there.
+    let slice = volume_of([24, 24, 7], spacing, |x, y, z| {
+        i64::from((4..20).contains(&x) && (4..20).contains(&y) && z == 3)
+    });
+    let (protected, n_thin) = kept_volume(&slice, 1, Thin::Protect);
+    let (off, _) = kept_volume(&slice, 1, Thin::Off);
+    eprintln!("one slice: {protected:.3} protected ({n_thin} held), {off:.3} without");
+    assert!(protected >= 0.5 && off >= 0.5, "{protected} {off}");
+    let cases: Vec<(&str, LabelVolume, i64)> = vec![
+        // A sheet one voxel thick across the slices.
+        (
+            "sheet",
+            volume_of([11, 24, 9], spacing, |x, y, z| {
+                i64::from(x == 5 && (4..20).contains(&y) && (1..8).contains(&z))
+            }),
+            1,
+        ),
+        // A vessel one voxel across, along the slices and across them.
+        (
+            "rod across slices",
+            volume_of([9, 9, 14], spacing, |x, y, z| {
+                i64::from(x == 4 && y == 4 && (2..12).contains(&z))
+            }),
+            1,
+        ),
+        (
+            "rod in a slice",
+            volume_of([30, 9, 5], spacing, |x, y, z| {
+                i64::from((3..27).contains(&x) && y == 4 && z == 2)
+            }),
+            1,
+        ),
+        // A hollow tube whose wall is one voxel thick.
+        (
+            "tube wall",
+            volume_of([26, 26, 8], spacing, |x, y, z| {
+                let r = (((x - 13) * (x - 13) + (y - 13) * (y - 13)) as f64).sqrt();
+                i64::from((r - 8.0).abs() < 0.5 && (2..6).contains(&z))
+            }),
+            1,
+        ),
+        // A one-voxel septum between two structures.
+        (
+            "septum",
+            volume_of([21, 14, 6], spacing, |x, y, z| {
+                if !(2..12).contains(&y) || !(1..5).contains(&z) || !(2..19).contains(&x) {
+                    0
+                } else if x < 10 {
+                    1
+                } else if x == 10 {
+                    2
+                } else {
+                    3
+                }
+            }),
+            2,
+        ),
+    ];
+    for (name, volume, value) in &cases {
+        let (protected, n_thin) = kept_volume(volume, *value, Thin::Protect);
+        let (off, none) = kept_volume(volume, *value, Thin::Off);
+        eprintln!("{name}: {protected:.3} of the voxel volume protected ({n_thin} held), {off:.3} without");
+        assert!(
+            n_thin > 0 && none == 0,
+            "{name}: {n_thin} / {none} thin voxels"
+        );
+        assert!(protected >= 0.5, "{name}: {protected}");
+        assert!(off < 0.75 * protected, "{name}: {off} vs {protected}");
+    }
+}
+
+/// Issue claim (§6.3.3): a lone voxel pimple on a flat face is flattened with `noise =
+/// "smooth"` (its spike becomes a gentle swelling) and kept with `"keep"`; its centre stays
+/// inside either way, and the relaxed voxel is counted.
+#[test]
+fn a_lone_pimple_is_flattened_or_kept_as_asked() {
+    let volume = volume_of([21, 21, 12], [1.0; 3], |x, y, z| {
+        let slab = (2..19).contains(&x) && (2..19).contains(&y) && (2..6).contains(&z);
+        i64::from(slab || (x, y, z) == (10, 10, 6))
+    });
+    let run = |noise: Noise| {
+        let smoothing = LabelSmoothing {
+            noise,
+            ..LabelSmoothing::default()
+        };
+        let mut all = interfaces(&volume);
+        let counts = place_on_weights(&volume, &mut all, &[smoothing; 2]);
+        let surface = label_surfaces(&volume, &all).remove(0).mesh;
+        // The steepest top face around the pimple (degrees from the face's plane), and how far
+        // the top reaches above the flat face.
+        let (mut steepest, mut top) = (0f64, 0f64);
+        for t in surface.triangles() {
+            let p = t.map(|i| surface.positions()[i as usize].map(f64::from));
+            let c: [f64; 3] = std::array::from_fn(|k| (p[0][k] + p[1][k] + p[2][k]) / 3.0);
+            let near = (c[0] - 10.0).abs() < 4.0 && (c[1] - 10.0).abs() < 4.0 && c[2] > 5.2;
+            if !near {
+                continue;
+            }
+            let e1: [f64; 3] = std::array::from_fn(|k| p[1][k] - p[0][k]);
+            let e2: [f64; 3] = std::array::from_fn(|k| p[2][k] - p[0][k]);
+            let n = [
+                e1[1] * e2[2] - e1[2] * e2[1],
+                e1[2] * e2[0] - e1[0] * e2[2],
+                e1[0] * e2[1] - e1[1] * e2[0],
+            ];
+            let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            if len > 0.0 && n[2] > 0.0 {
+                steepest = steepest.max((n[2] / len).clamp(-1.0, 1.0).acos().to_degrees());
+            }
+            top = top.max(c[2]);
+        }
+        let centre = winding(&surface, [10.0, 10.0, 6.0]);
+        (steepest, top, centre, counts[1].noise_voxels)
+    };
+    let (kept, kept_top, kept_centre, kept_count) = run(Noise::Keep);
+    let (smooth, smooth_top, smooth_centre, smooth_count) = run(Noise::Smooth);
+    eprintln!(
+        "pimple: steepest face {kept:.1} deg kept ({kept_count} relaxed, top {kept_top:.2}), {smooth:.1} deg smoothed ({smooth_count} relaxed, top {smooth_top:.2})"
+    );
+    // Measured: 30.9 degrees kept, 16.6 smoothed. The slab's own edges count as noise too
+    // (each edge voxel has at most 4 pinned neighbours in reach), so more than the pimple is
+    // relaxed.
+    assert!(
+        kept_count == 0 && smooth_count >= 1,
+        "{kept_count} {smooth_count}"
+    );
+    assert!(
+        kept_centre > 0.5 && smooth_centre > 0.5,
+        "{kept_centre} {smooth_centre}"
+    );
+    assert!(smooth < 0.65 * kept, "{smooth} vs {kept}");
 }

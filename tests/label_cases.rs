@@ -53,6 +53,7 @@ root = "out"
 1 = "tumor"
 2 = "vein"
 [defaults]
+surface = "binary"
 method = "hc"
 iterations = 20
 [[structure]]
@@ -155,6 +156,8 @@ fn labels_become_structures_smoothed_with_the_header_geometry() {
         ex.to_str().unwrap(),
         "--labels",
         "1=tumor,2=vein",
+        "--surface",
+        "binary",
     ]);
     assert!(run.status.success(), "{}", stderr(&run));
     let opts = ReadOptions::default();
@@ -505,11 +508,16 @@ fn extract_constrained_surfaces_from_the_command_line() {
     assert!(run.status.success(), "{}", stderr(&run));
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("extract.json")).unwrap()).unwrap();
-    assert_eq!(report["surface"], "constrained");
-    // sigma: twice the smallest spacing (0.45 mm).
-    let sigma = report["constrained"]["sigma_mm"].as_f64().unwrap();
-    assert!((sigma - 0.9).abs() < 1e-5, "{sigma}");
     for l in report["labels"].as_array().unwrap() {
+        let e = &l["extraction"];
+        assert_eq!(e["surface"], "constrained", "{l}");
+        assert_eq!(
+            (&e["noise"], &e["thin"]),
+            (&"smooth".into(), &"protect".into())
+        );
+        // sigma: twice the smallest spacing (0.45 mm).
+        let sigma = e["sigma_mm"].as_f64().unwrap();
+        assert!((sigma - 0.9).abs() < 1e-5, "{sigma}");
         assert_eq!(l["closed_oriented_manifold"], true, "{l}");
         let (m, v) = (
             l["mesh_volume_mm3"].as_f64().unwrap(),
@@ -519,7 +527,9 @@ fn extract_constrained_surfaces_from_the_command_line() {
     }
     for bad in [
         vec!["--surface", "constrained", "--sigma-mm", "0"],
-        vec!["--sigma-mm", "1"],
+        vec!["--surface", "binary", "--sigma-mm", "1"],
+        vec!["--surface", "binary", "--noise", "keep"],
+        vec!["--surface", "binary", "--thin", "off"],
     ] {
         let mut args = vec![
             "extract",
@@ -527,9 +537,96 @@ fn extract_constrained_surfaces_from_the_command_line() {
             "--out",
             out.to_str().unwrap(),
         ];
+        let flag = if bad.contains(&"--noise") {
+            "--noise"
+        } else if bad.contains(&"--thin") {
+            "--thin"
+        } else {
+            "--sigma-mm"
+        };
         args.extend(bad);
         let r = destair(&args);
         assert_eq!(r.status.code(), Some(2), "{}", stderr(&r));
-        assert!(stderr(&r).contains("--sigma-mm"), "{}", stderr(&r));
+        assert!(stderr(&r).contains(flag), "{}", stderr(&r));
     }
+}
+
+/// Label-map structures are constrained surfaces by default, with no mesh smoother after them
+/// unless `method` is configured; the report keeps the extraction's settings and counts, and
+/// the metrics measure the change from the binary extraction. Every key works per structure.
+#[test]
+fn label_surfaces_are_constrained_by_default_and_per_structure() {
+    let tmp = tempfile::tempdir().unwrap();
+    phantom(&tmp.path().join("cases/neck"), &[]);
+    let text = r#"
+[input]
+roots = ["cases"]
+case_depth = 1
+[output]
+root = "out"
+[labels]
+1 = "tumor"
+2 = "vein"
+[[structure]]
+pattern = "vein"
+noise = "keep"
+thin = "off"
+sigma_mm = 0.7
+[[structure]]
+pattern = "label_3"
+surface = "binary"
+"#;
+    let cfg = config(tmp.path(), text);
+    let out = destair(&["run", cfg.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let r = report(tmp.path(), "neck");
+    assert_eq!(r["status"], "ok", "{r}");
+    let tumor = structure(&r, "tumor");
+    let e = &tumor["source"]["extraction"];
+    assert_eq!(e["surface"], "constrained", "{e}");
+    assert_eq!(
+        (&e["noise"], &e["thin"]),
+        (&"smooth".into(), &"protect".into())
+    );
+    assert!((e["sigma_mm"].as_f64().unwrap() - 0.9).abs() < 1e-6, "{e}");
+    assert!(e["noise_voxels"].as_u64().unwrap() > 0, "{e}");
+    // No mesh smoother: the change is the extraction's, from the binary surface.
+    assert!(tumor["method"].is_null(), "{}", tumor["method"]);
+    let m = &tumor["metrics"];
+    let (before, after) = (
+        m["normal_curvature_original_deg"].as_f64().unwrap(),
+        m["normal_curvature_smoothed_deg"].as_f64().unwrap(),
+    );
+    assert!(after < 0.5 * before, "{before} -> {after}");
+    let vein = &structure(&r, "vein")["source"]["extraction"];
+    assert_eq!(
+        (&vein["noise"], &vein["thin"]),
+        (&"keep".into(), &"off".into())
+    );
+    assert_eq!(vein["noise_voxels"], 0);
+    assert!(
+        (vein["sigma_mm"].as_f64().unwrap() - 0.7).abs() < 1e-9,
+        "{vein}"
+    );
+    let third = &structure(&r, "label_3")["source"]["extraction"];
+    assert_eq!(third["surface"], "binary", "{third}");
+    assert!(third["sigma_mm"].is_null(), "{third}");
+    let md = std::fs::read_to_string(tmp.path().join("out/neck/report.md")).unwrap();
+    assert!(
+        md.contains("`tumor`: surface constrained (sigma 0.900 mm"),
+        "{md}"
+    );
+    assert!(md.contains("`label_3`: surface binary"), "{md}");
+    // A wrong value names the key.
+    let bad = config(
+        tmp.path(),
+        &text.replace("surface = \"binary\"", "surface = \"smooth\""),
+    );
+    let out = destair(&["run", bad.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("surface = \"smooth\""),
+        "{}",
+        stderr(&out)
+    );
 }

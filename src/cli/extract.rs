@@ -20,14 +20,22 @@ pub struct Args {
     /// Mesh format: ply or stl.
     #[arg(long, value_enum, default_value_t = FormatArg::Ply)]
     format: FormatArg,
-    /// binary: vertices at cell-edge midpoints (terraced); constrained: label weights smoothed
-    /// with a Gaussian and clamped so every voxel keeps its label (thesis §6.3.2), vertices at
-    /// sub-voxel positions (smooth).
-    #[arg(long, value_enum, default_value_t = SurfaceArg::Binary)]
+    /// constrained: label weights smoothed with a Gaussian and clamped so every voxel keeps its
+    /// label (thesis §6.3), vertices at sub-voxel positions (smooth); binary: vertices at
+    /// cell-edge midpoints (terraced).
+    #[arg(long, value_enum, default_value_t = SurfaceArg::Constrained)]
     surface: SurfaceArg,
     /// Gaussian sigma for --surface constrained (mm; default twice the smallest spacing).
     #[arg(long)]
     sigma_mm: Option<f64>,
+    /// One- and two-voxel bumps and pits: smooth relaxes their constraint into gentle
+    /// swellings (§6.3.3), keep pins them like every voxel.
+    #[arg(long, value_enum)]
+    noise: Option<NoiseArg>,
+    /// Parts one voxel thick: protect keeps a real thickness there (§6.3.4), off lets them
+    /// shrink onto their voxel centres.
+    #[arg(long, value_enum)]
+    thin: Option<ThinArg>,
     /// Also write all interfaces as one PLY with per-face `inner_label` and `outer_label` (the
     /// label values on the two sides; 0 is background), as tetrahedral meshers with regions
     /// take. Further layers of a .seg.nrrd go to FILE_layerN.ply.
@@ -39,6 +47,18 @@ pub struct Args {
 enum SurfaceArg {
     Binary,
     Constrained,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum NoiseArg {
+    Smooth,
+    Keep,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum ThinArg {
+    Protect,
+    Off,
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -79,8 +99,16 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
                 UsageError(format!("--sigma-mm {s}: must be a positive number of mm")).into(),
             );
         }
-        if matches!(args.surface, SurfaceArg::Binary) {
-            return Err(UsageError("--sigma-mm applies to --surface constrained".into()).into());
+    }
+    if matches!(args.surface, SurfaceArg::Binary) {
+        for (given, flag) in [
+            (args.sigma_mm.is_some(), "--sigma-mm"),
+            (args.noise.is_some(), "--noise"),
+            (args.thin.is_some(), "--thin"),
+        ] {
+            if given {
+                return Err(UsageError(format!("{flag} applies to --surface constrained")).into());
+            }
         }
     }
     if args.out.exists() && !args.out.is_dir() {
@@ -130,25 +158,35 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     let mut rows = Vec::new();
     let mut used = std::collections::BTreeSet::new();
     let t_extract = std::time::Instant::now();
-    // Every layer of a file shares one grid, so one set of parameters.
-    let constrained = matches!(args.surface, SurfaceArg::Constrained).then(|| {
-        let mut p = destair::extract::constrained::ConstrainedParams::for_volume(&map.layers[0]);
-        if let Some(s) = args.sigma_mm {
-            p.sigma_mm = s;
-        }
-        p
-    });
+    use destair::extract::constrained::{LabelSmoothing, Noise, Surface, Thin};
+    let smoothing = LabelSmoothing {
+        surface: match args.surface {
+            SurfaceArg::Binary => Surface::Binary,
+            SurfaceArg::Constrained => Surface::Constrained,
+        },
+        sigma_mm: args.sigma_mm,
+        noise: match args.noise {
+            Some(NoiseArg::Keep) => Noise::Keep,
+            _ => Noise::Smooth,
+        },
+        thin: match args.thin {
+            Some(ThinArg::Off) => Thin::Off,
+            _ => Thin::Protect,
+        },
+    };
     let surfaces_of = |layer: &destair::volume::LabelVolume| {
         let mut all = destair::extract::interfaces(layer);
-        if let Some(params) = &constrained {
-            destair::extract::constrained::place_on_weights(layer, &mut all, params);
-        }
-        all
+        let counts = destair::extract::constrained::place_on_weights(
+            layer,
+            &mut all,
+            &vec![smoothing; layer.labels.len() + 1],
+        );
+        (all, counts)
     };
     // Interfaces kept for --combined, which writes the same surfaces as one mesh.
     let mut kept = Vec::new();
     for (layer_index, layer) in map.layers.iter().enumerate() {
-        let all = surfaces_of(layer);
+        let (all, counts) = surfaces_of(layer);
         let surfaces = destair::extract::label_surfaces(layer, &all);
         if args.combined.is_some() {
             kept.push(all);
@@ -169,12 +207,17 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
                 &[args.labelmap.as_path()],
                 false,
             )?;
-            jobs.push((label, file, s.mesh));
+            let extraction = destair::extract::report::Extraction::new(
+                layer,
+                &smoothing,
+                counts[s.label as usize],
+            );
+            jobs.push((label, file, s.mesh, extraction));
         }
         use rayon::prelude::*;
         let written: Vec<anyhow::Result<_>> = jobs
             .into_par_iter()
-            .map(|(label, file, mesh)| {
+            .map(|(label, file, mesh, extraction)| {
                 let path = args.out.join(&file);
                 match args.format {
                     FormatArg::Ply => destair::io::ply::write_ply(&path, &mesh, &meta, &[])?,
@@ -186,6 +229,7 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
                     file,
                     &mesh,
                     &layer.grid,
+                    extraction,
                 ))
             })
             .collect();
@@ -241,11 +285,6 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         dims: map.layers[0].dims,
         spacing_mm: g.spacing(),
         affine: g.affine(),
-        surface: match args.surface {
-            SurfaceArg::Binary => "binary".into(),
-            SurfaceArg::Constrained => "constrained".into(),
-        },
-        constrained,
         labels: rows,
         warnings: map.warnings.clone(),
     };

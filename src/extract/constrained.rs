@@ -3,7 +3,10 @@
 //! of the label keeps a weight above 1/2 and every other voxel stays below it. Every voxel
 //! therefore keeps its own label as the largest weight, and the surfaces where the two largest
 //! interpolated weights are equal still separate every pair of differently labelled voxel
-//! centres; they only move to sub-voxel positions, which makes them smooth.
+//! centres; they only move to sub-voxel positions, which makes them smooth. The chapter's two
+//! refinements run on top: lone pinned voxels ("pimples", §6.3.3, [`super::noise`]) get their
+//! constraint relaxed, and voxels where a label is one voxel thick (§6.3.4, [`super::thin`])
+//! get the strongest one, so thin sheets and tubes keep a real thickness.
 //!
 //! The surfaces keep the topology of the consistent extraction ([`super::interfaces`]): each
 //! vertex on a cell edge moves along that edge to where the two labels' interpolated weights
@@ -12,33 +15,140 @@
 //! a cell to the mean of its fan's rim. Weights are evaluated only at the voxels next to the
 //! surface, so memory grows with the surface, not with the volume.
 
+use super::noise::Pinned;
+use super::thin::ThinVoxels;
 use super::{Interfaces, VERTEX_APEX, VERTEX_EDGE, VERTEX_FACE};
 use crate::volume::LabelVolume;
 use rayon::prelude::*;
+use serde::Serialize;
 
 /// Half-width of the discrete kernel in voxels along each axis: 5 x 5 x 5 taps, as the thesis
 /// uses.
 const RADIUS: i64 = 2;
 
-/// Parameters of constrained smoothing.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-pub struct ConstrainedParams {
-    /// Gaussian sigma (mm); the thesis's default is twice the smallest voxel spacing.
-    pub sigma_mm: f64,
-    /// How far from 1/2 the clamp keeps weights (0 lets surfaces touch voxel centres; the
-    /// default keeps them a little off, in units of weight).
-    pub margin: f32,
+/// Fewest thin voxels of a label within the kernel's reach for a thin voxel to be protected
+/// (fewer are a one- or two-voxel bump: surface noise).
+const MIN_THIN_PART: usize = 3;
+
+/// Below this smoothed weight a thin voxel is held at full weight (rods, walls and sheets one
+/// voxel thick fall to 0.05-0.3; the rim of a thick slice stays near 1/2).
+const THIN_BELOW: f32 = 0.35;
+
+/// How far from 1/2 the clamp keeps weights: surfaces stay a little off voxel centres (at 0,
+/// one-voxel-thin parts would collapse onto them).
+pub const MARGIN: f32 = 0.02;
+
+/// How a label's surface is made.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Surface {
+    /// Vertices at cell-edge midpoints: the plain consistent extraction (terraced).
+    Binary,
+    /// Label weights smoothed and clamped (§6.3): smooth, every voxel keeps its label.
+    Constrained,
 }
 
-impl ConstrainedParams {
-    /// The defaults for a volume: sigma twice its smallest spacing, margin 0.02.
-    pub fn for_volume(volume: &LabelVolume) -> ConstrainedParams {
-        let s = volume.grid.spacing();
-        ConstrainedParams {
-            sigma_mm: 2.0 * s[0].min(s[1]).min(s[2]),
-            margin: 0.02,
+/// What constrained smoothing does with one- and two-voxel bumps and pits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Noise {
+    /// Relax their constraint so they become gentle swellings (§6.3.3).
+    Smooth,
+    /// Keep them as pinned as every other voxel.
+    Keep,
+}
+
+/// What constrained smoothing does where a label is one voxel thick.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Thin {
+    /// Fix the weights there to full (§6.3.4), so the part keeps a real thickness.
+    Protect,
+    /// Treat them like any voxel (thin parts shrink onto their voxel centres).
+    Off,
+}
+
+impl Surface {
+    /// The config word.
+    pub fn name(self) -> &'static str {
+        match self {
+            Surface::Binary => "binary",
+            Surface::Constrained => "constrained",
         }
     }
+}
+
+impl Noise {
+    /// The config word.
+    pub fn name(self) -> &'static str {
+        match self {
+            Noise::Smooth => "smooth",
+            Noise::Keep => "keep",
+        }
+    }
+}
+
+impl Thin {
+    /// The config word.
+    pub fn name(self) -> &'static str {
+        match self {
+            Thin::Protect => "protect",
+            Thin::Off => "off",
+        }
+    }
+}
+
+/// How one label is extracted; the defaults are the chapter's.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct LabelSmoothing {
+    pub surface: Surface,
+    /// Gaussian sigma (mm); `None` is twice the volume's smallest voxel spacing.
+    pub sigma_mm: Option<f64>,
+    pub noise: Noise,
+    pub thin: Thin,
+}
+
+impl Default for LabelSmoothing {
+    fn default() -> LabelSmoothing {
+        LabelSmoothing {
+            surface: Surface::Constrained,
+            sigma_mm: None,
+            noise: Noise::Smooth,
+            thin: Thin::Protect,
+        }
+    }
+}
+
+impl LabelSmoothing {
+    /// The plain consistent extraction.
+    pub fn binary() -> LabelSmoothing {
+        LabelSmoothing {
+            surface: Surface::Binary,
+            ..LabelSmoothing::default()
+        }
+    }
+
+    /// The sigma used on `volume` (mm).
+    pub fn sigma_on(&self, volume: &LabelVolume) -> f64 {
+        self.sigma_mm.unwrap_or_else(|| default_sigma_mm(volume))
+    }
+}
+
+/// The chapter's sigma: twice the smallest voxel spacing (mm).
+pub fn default_sigma_mm(volume: &LabelVolume) -> f64 {
+    let s = volume.grid.spacing();
+    2.0 * s[0].min(s[1]).min(s[2])
+}
+
+/// What the refinements did to one label.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct LabelCounts {
+    /// Voxels relaxed as surface noise (bumps of the label and pits in it).
+    pub noise_voxels: u64,
+    /// Noise voxels left pinned: their group of near noise voxels was too large to solve.
+    pub noise_unsolved: u64,
+    /// Voxels of the label found one voxel thick and held at full weight.
+    pub thin_voxels: u64,
 }
 
 /// The 5 taps of the Gaussian along each axis, normalised (per-axis sigma in voxels from the
@@ -67,12 +177,11 @@ fn label_at(volume: &LabelVolume, p: [i64; 3]) -> u16 {
     }
 }
 
-/// The clamped smoothed weights of dense labels `a` and `b` at voxel `v`, in one pass over the
-/// kernel (voxels outside the volume are background).
+/// The smoothed (unclamped) weights of dense labels `a` and `b`, each with its own kernel, at
+/// voxel `v`, in one pass over the kernel (voxels outside the volume are background).
 fn weights(
     volume: &LabelVolume,
-    g: &[[f32; 5]; 3],
-    margin: f32,
+    [ga, gb]: [&[[f32; 5]; 3]; 2],
     [a, b]: [u16; 2],
     v: [i64; 3],
 ) -> [f32; 2] {
@@ -80,73 +189,203 @@ fn weights(
     let inside = (0..3).all(|k| v[k] >= RADIUS && v[k] + RADIUS < [nx, ny, nz][k]);
     let mut w = [0f32; 2];
     for dz in -RADIUS..=RADIUS {
-        let gz = g[2][(dz + RADIUS) as usize];
+        let i = (dz + RADIUS) as usize;
+        let (za, zb) = (ga[2][i], gb[2][i]);
         for dy in -RADIUS..=RADIUS {
-            let gyz = gz * g[1][(dy + RADIUS) as usize];
+            let j = (dy + RADIUS) as usize;
+            let (yza, yzb) = (za * ga[1][j], zb * gb[1][j]);
             let (y, z) = (v[1] + dy, v[2] + dz);
             if inside {
                 // The whole row lies in the volume: no bounds to check.
                 let start = (v[0] - RADIUS + nx * (y + ny * z)) as usize;
                 let row = &volume.voxels[start..start + 5];
-                for (gx, &l) in g[0].iter().zip(row) {
-                    w[0] += if l == a { gyz * gx } else { 0.0 };
-                    w[1] += if l == b { gyz * gx } else { 0.0 };
+                for ((xa, xb), &l) in ga[0].iter().zip(&gb[0]).zip(row) {
+                    w[0] += if l == a { yza * xa } else { 0.0 };
+                    w[1] += if l == b { yzb * xb } else { 0.0 };
                 }
                 continue;
             }
             for dx in -RADIUS..=RADIUS {
                 let l = label_at(volume, [v[0] + dx, y, z]);
-                let gx = g[0][(dx + RADIUS) as usize];
-                w[0] += if l == a { gyz * gx } else { 0.0 };
-                w[1] += if l == b { gyz * gx } else { 0.0 };
+                let k = (dx + RADIUS) as usize;
+                w[0] += if l == a { yza * ga[0][k] } else { 0.0 };
+                w[1] += if l == b { yzb * gb[0][k] } else { 0.0 };
             }
         }
     }
-    let own = label_at(volume, v);
-    let clamp = |w: f32, label: u16| {
-        if own == label {
-            w.max(0.5 + margin)
-        } else {
-            w.min(0.5 - margin)
-        }
-    };
-    [clamp(w[0], a), clamp(w[1], b)]
+    w
+}
+
+/// The cell edge an edge vertex lies on: its axis and lower voxel (the position is a whole
+/// number along the other two axes).
+fn edge_of(p: &[f64; 3]) -> Option<(usize, [i64; 3])> {
+    let axis = (0..3).find(|&a| p[a].fract() != 0.0)?;
+    Some((axis, std::array::from_fn(|a| p[a].floor() as i64)))
 }
 
 /// Moves the vertices of `all` (extracted from `volume`) to where the two largest constrained
 /// weights tie: edge vertices along their edges, then face and cell branching points to the
-/// means of their neighbours. Positions stay in voxel index coordinates.
-pub fn place_on_weights(volume: &LabelVolume, all: &mut Interfaces, params: &ConstrainedParams) {
-    let g = kernel(volume, params.sigma_mm);
-    let margin = params.margin.clamp(0.0, 0.49);
-    // Edge vertices: the edge runs along the one axis where the position is not a whole number.
+/// means of their neighbours. Positions stay in voxel index coordinates. `smoothing[l]` is how
+/// dense label `l` is extracted (entry 0 is the background; missing entries take the
+/// defaults); an interface with a binary label on either side stays binary. Returns what the
+/// refinements did, per dense label.
+pub fn place_on_weights(
+    volume: &LabelVolume,
+    all: &mut Interfaces,
+    smoothing: &[LabelSmoothing],
+) -> Vec<LabelCounts> {
+    let n_labels = volume.labels.len() + 1;
+    let per: Vec<LabelSmoothing> = (0..n_labels)
+        .map(|l| smoothing.get(l).copied().unwrap_or_default())
+        .collect();
+    let kernels: Vec<[[f32; 5]; 3]> = per
+        .iter()
+        .map(|s| kernel(volume, s.sigma_on(volume)))
+        .collect();
+    let smoothed = |l: u16| per[l as usize].surface == Surface::Constrained;
+    if !(1..n_labels as u16).any(smoothed) {
+        // All binary: the consistent extraction stays as it is.
+        return vec![LabelCounts::default(); n_labels];
+    }
+    let relaxes = |l: u16| smoothed(l) && per[l as usize].noise == Noise::Smooth;
+    // Thin voxels of each label that protects them.
+    let protects: Vec<bool> = (0..n_labels as u16)
+        .map(|l| l > 0 && smoothed(l) && per[l as usize].thin == Thin::Protect)
+        .collect();
+    let boxes = if protects.iter().any(|&p| p) {
+        super::thin::label_boxes(volume)
+    } else {
+        Vec::new()
+    };
+    let thin: Vec<Option<ThinVoxels>> = (0..n_labels)
+        .into_par_iter()
+        .map(|l| match (protects[l], boxes.get(l).copied().flatten()) {
+            (true, Some(b)) => Some(super::thin::thin_voxels(volume, l as u16, b)),
+            _ => None,
+        })
+        .collect();
+    // A voxel is held at full weight when it is thin, its smoothed weight fell well below 1/2
+    // (the clamp alone would pin the surface onto its centre), and it belongs to a thin part
+    // of at least three voxels (a lone one- or two-voxel bump is surface noise). The rim of a
+    // thick slice's widest contour is thin by the opening too, but its weight stays near 1/2,
+    // so it smooths like any voxel.
+    let held = |v: [i64; 3], l: u16, own_weight: f32| {
+        own_weight < THIN_BELOW
+            && thin[l as usize]
+                .as_ref()
+                .is_some_and(|t| t.contains(v) && t.count_near(v, RADIUS) >= MIN_THIN_PART)
+    };
+    let [nx, ny, _] = volume.dims.map(|d| d as u64);
+    let linear = |v: [i64; 3]| v[0] as u64 + nx * (v[1] as u64 + ny * v[2] as u64);
+
+    // Pass 1: the smoothed weights at both ends of every edge between two smoothed labels,
+    // which ends are held as thin, and the voxels the clamp pins where noise may be relaxed.
+    struct Sample {
+        w: [f32; 4],
+        held: [bool; 2],
+        pins: Vec<Pinned>,
+        held_voxels: Vec<(u64, u16)>,
+    }
     let kinds = &all.kinds;
-    all.positions
-        .par_iter_mut()
+    let samples: Vec<Option<Sample>> = all
+        .positions
+        .par_iter()
         .zip(kinds.par_iter())
-        .filter(|(_, &kind)| kind == VERTEX_EDGE)
-        .for_each(|(p, _)| {
-            let Some(axis) = (0..3).find(|&a| p[a].fract() != 0.0) else {
-                return;
-            };
-            let lo: [i64; 3] = std::array::from_fn(|a| p[a].floor() as i64);
+        .map(|(p, &kind)| {
+            let (axis, lo) = (kind == VERTEX_EDGE).then(|| edge_of(p)).flatten()?;
             let mut hi = lo;
             hi[axis] += 1;
             let (a, b) = (label_at(volume, lo), label_at(volume, hi));
-            if a == b {
-                return;
+            if a == b || !smoothed(a) || !smoothed(b) {
+                return None;
             }
-            // d = w_a - w_b, positive at lo and negative at hi after the clamp.
-            let [wa, wb] = weights(volume, &g, margin, [a, b], lo);
-            let d_lo = wa - wb;
-            let [wa, wb] = weights(volume, &g, margin, [a, b], hi);
-            let d_hi = wa - wb;
+            let g = [&kernels[a as usize], &kernels[b as usize]];
+            let [a_lo, b_lo] = weights(volume, g, [a, b], lo);
+            let [a_hi, b_hi] = weights(volume, g, [a, b], hi);
+            let hold = [held(lo, a, a_lo), held(hi, b, b_hi)];
+            let mut held_voxels = Vec::new();
+            for (h, v, l) in [(hold[0], lo, a), (hold[1], hi, b)] {
+                if h {
+                    held_voxels.push((linear(v), l));
+                }
+            }
+            let mut pins = Vec::new();
+            if relaxes(a) && relaxes(b) {
+                // lo holds a and hi holds b: a's weight must win at lo, b's at hi.
+                for (voxel, label, w, own, h) in [
+                    (lo, a, a_lo, true, hold[0]),
+                    (lo, b, b_lo, false, hold[0]),
+                    (hi, b, b_hi, true, hold[1]),
+                    (hi, a, a_hi, false, hold[1]),
+                ] {
+                    if !h && ((own && w < 0.5) || (!own && w > 0.5)) {
+                        pins.push(Pinned {
+                            voxel: linear(voxel),
+                            label,
+                            raw: w,
+                        });
+                    }
+                }
+            }
+            Some(Sample {
+                w: [a_lo, b_lo, a_hi, b_hi],
+                held: hold,
+                pins,
+                held_voxels,
+            })
+        })
+        .collect();
+    let mut pinned = Vec::new();
+    let mut held_voxels = Vec::new();
+    for s in samples.iter().flatten() {
+        pinned.extend_from_slice(&s.pins);
+        held_voxels.extend_from_slice(&s.held_voxels);
+    }
+    held_voxels.sort_unstable();
+    held_voxels.dedup();
+    let relaxation = super::noise::relax(volume.dims, &kernels, pinned, n_labels);
+
+    // Pass 2: offsets, thin protection and the clamp; then the tie along the edge.
+    let margin = MARGIN;
+    all.positions
+        .par_iter_mut()
+        .zip(samples.par_iter())
+        .for_each(|(p, sample)| {
+            let Some(sample) = sample else {
+                return;
+            };
+            let Some((axis, lo)) = edge_of(p) else {
+                return;
+            };
+            let mut hi = lo;
+            hi[axis] += 1;
+            let (a, b) = (label_at(volume, lo), label_at(volume, hi));
+            let mut w = sample.w;
+            if !relaxation.is_empty() {
+                let (vlo, vhi) = (linear(lo), linear(hi));
+                let (rlo, rhi) = ((vlo / nx) as usize, (vhi / nx) as usize);
+                w[0] += relaxation.delta(vlo, rlo, a);
+                w[1] += relaxation.delta(vlo, rlo, b);
+                w[2] += relaxation.delta(vhi, rhi, a);
+                w[3] += relaxation.delta(vhi, rhi, b);
+            }
+            // A held thin voxel keeps its label fully.
+            if sample.held[0] {
+                (w[0], w[1]) = (1.0, 0.0);
+            }
+            if sample.held[1] {
+                (w[2], w[3]) = (0.0, 1.0);
+            }
+            // d = w_a - w_b: positive at lo and negative at hi after the clamp.
+            let d_lo = w[0].max(0.5 + margin) - w[1].min(0.5 - margin);
+            let d_hi = w[2].min(0.5 - margin) - w[3].max(0.5 + margin);
             let denominator = d_lo - d_hi;
             if denominator > 0.0 && d_lo >= 0.0 {
                 let t = (d_lo / denominator).clamp(0.0, 1.0) as f64;
                 p[axis] = lo[axis] as f64 + t;
             }
         });
+    drop(samples);
     // Branching points: the mean of their neighbours (edge vertices on the same face for face
     // points; the whole rim for cell points), faces first.
     let mut neighbours: Vec<Vec<u32>> = vec![Vec::new(); all.positions.len()];
@@ -202,4 +441,11 @@ pub fn place_on_weights(volume: &LabelVolume, all: &mut Interfaces, params: &Con
             all.positions[v] = p;
         }
     }
+    (0..n_labels)
+        .map(|l| LabelCounts {
+            noise_voxels: relaxation.relaxed_per_label[l],
+            noise_unsolved: relaxation.unsolved_per_label[l],
+            thin_voxels: held_voxels.iter().filter(|(_, h)| *h as usize == l).count() as u64,
+        })
+        .collect()
 }

@@ -17,7 +17,9 @@
 
 mod cell;
 pub mod constrained;
+pub mod noise;
 pub mod report;
+pub mod thin;
 
 use cell::{Template, KIND_APEX};
 

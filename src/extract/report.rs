@@ -1,9 +1,10 @@
 //! What `destair extract` writes beside the meshes: `extract.json` with the label map's grid
 //! and, per label, its name, voxel count, the volume of its voxels and of its surface (mm³),
-//! and whether the surface is a closed oriented 2-manifold.
+//! whether the surface is a closed oriented 2-manifold, and how it was extracted.
 
+use crate::extract::constrained::{LabelCounts, LabelSmoothing, Noise, Surface, Thin};
 use crate::mesh::{geometry::signed_volume, Topology};
-use crate::volume::{Grid, Label};
+use crate::volume::{Grid, Label, LabelVolume};
 use serde::Serialize;
 
 /// One extracted structure.
@@ -20,6 +21,42 @@ pub struct ExtractedLabel {
     pub n_vertices: usize,
     pub n_triangles: usize,
     pub closed_oriented_manifold: bool,
+    pub extraction: Extraction,
+}
+
+/// How a label's surface was made, with what the refinements did.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Extraction {
+    /// "binary" (vertices at cell-edge midpoints) or "constrained" (§6.3).
+    pub surface: Surface,
+    /// The Gaussian's sigma (mm), for constrained surfaces.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sigma_mm: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub noise: Option<Noise>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub thin: Option<Thin>,
+    /// Voxels relaxed as surface noise, left pinned, and protected as thin (all 0 for binary).
+    #[serde(flatten)]
+    pub counts: LabelCounts,
+}
+
+impl Extraction {
+    /// The settings in effect for a label of `volume` and their counts.
+    pub fn new(
+        volume: &LabelVolume,
+        smoothing: &LabelSmoothing,
+        counts: LabelCounts,
+    ) -> Extraction {
+        let constrained = smoothing.surface == Surface::Constrained;
+        Extraction {
+            surface: smoothing.surface,
+            sigma_mm: constrained.then(|| smoothing.sigma_on(volume)),
+            noise: constrained.then_some(smoothing.noise),
+            thin: constrained.then_some(smoothing.thin),
+            counts,
+        }
+    }
 }
 
 /// `extract.json`.
@@ -32,11 +69,6 @@ pub struct ExtractReport {
     pub spacing_mm: [f64; 3],
     /// Index to world (mm), row by row.
     pub affine: [[f64; 4]; 4],
-    /// "binary" (vertices at cell-edge midpoints) or "constrained" (§6.3.2).
-    pub surface: String,
-    /// The constrained smoothing's parameters, for `surface = "constrained"`.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub constrained: Option<crate::extract::constrained::ConstrainedParams>,
     pub labels: Vec<ExtractedLabel>,
     pub warnings: Vec<String>,
 }
@@ -48,6 +80,7 @@ pub fn extracted_label(
     file: String,
     mesh: &crate::Mesh,
     grid: &Grid,
+    extraction: Extraction,
 ) -> ExtractedLabel {
     let topology = Topology::build(mesh);
     ExtractedLabel {
@@ -61,5 +94,6 @@ pub fn extracted_label(
         n_vertices: mesh.n_vertices(),
         n_triangles: mesh.n_triangles(),
         closed_oriented_manifold: topology.is_closed_oriented_manifold(),
+        extraction,
     }
 }

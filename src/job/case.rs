@@ -31,6 +31,9 @@ pub struct LoadedFile {
     pub place: Place,
     /// The label map and label the structure was extracted from.
     pub source: Option<LabelSource>,
+    /// For a constrained label surface, the binary extraction with the same triangles: the
+    /// "before" of its metrics.
+    pub binary: Option<Mesh>,
 }
 
 /// A case with its files in memory.
@@ -93,6 +96,7 @@ pub fn load_case(plan: &Plan, input: CaseInput) -> LoadedCase {
                     mesh: mesh.map_err(|e| format!("{}: {e}", plan.display(path))),
                     place: Place::World,
                     source: None,
+                    binary: None,
                 },
                 Err(e) => LoadedFile {
                     structure: structure.clone(),
@@ -102,6 +106,7 @@ pub fn load_case(plan: &Plan, input: CaseInput) -> LoadedCase {
                     mesh: Err(format!("{}: cannot read: {e}", plan.display(path))),
                     place: Place::World,
                     source: None,
+                    binary: None,
                 },
             }
         })
@@ -214,6 +219,7 @@ pub fn process_case(plan: &Plan, case: LoadedCase) -> CaseOutput {
                     mesh: Ok(st.mesh),
                     place: st.place,
                     source: Some(st.source),
+                    binary: st.binary,
                 });
             }
         }
@@ -438,41 +444,52 @@ fn process_structure(
         .iter()
         .filter_map(|r| grids.get(&(r.clone(), frame_key)))
         .collect();
-    let ctx = context_weights(mesh, &topology, &context_params, &refs);
-    let fixed = if settings.move_boundary {
-        vec![false; mesh.n_vertices()]
+    // A constrained label surface is smooth and true to its voxels already: a mesh smoother
+    // runs on it only when `method` is configured.
+    let smoother = file.binary.is_none() || settings.method_configured;
+    let (positions, weights) = if smoother {
+        let ctx = context_weights(mesh, &topology, &context_params, &refs);
+        let fixed = if settings.move_boundary {
+            vec![false; mesh.n_vertices()]
+        } else {
+            boundary_vertices(&topology)
+        };
+        let (positions, stats) = smooth(
+            mesh,
+            &topology,
+            &method,
+            settings.iterations,
+            &ctx.weights,
+            &fixed,
+        );
+        let mut summary = context_summary(&ctx, mesh.n_vertices());
+        if header.is_some() {
+            // Directions as the world sees them; the axis came from the header.
+            let world = |d: [f32; 3]| place.direction_to_world(d.map(f64::from)).map(|x| x as f32);
+            summary.axis = summary.axis.map(world);
+            for cap in &mut summary.caps {
+                cap.normal = world(cap.normal);
+            }
+            if matches!(settings.context.axis, AxisChoice::Auto) && summary.axis.is_some() {
+                summary.axis_source = "label_map_header".into();
+            }
+        }
+        report.context = Some(summary);
+        report.method = Some(method);
+        report.smooth = Some(stats);
+        crate::smooth::check_result(
+            mesh.positions(),
+            &positions,
+            settings.max_displacement_voxels,
+            crate::smooth::displacement_unit(mesh, &topology, voxel),
+        )?;
+        (positions, ctx.weights.as_slice().to_vec())
     } else {
-        boundary_vertices(&topology)
+        (mesh.positions().to_vec(), vec![1.0; mesh.n_vertices()])
     };
-    let (positions, stats) = smooth(
-        mesh,
-        &topology,
-        &method,
-        settings.iterations,
-        &ctx.weights,
-        &fixed,
-    );
-    let mut summary = context_summary(&ctx, mesh.n_vertices());
-    if header.is_some() {
-        // Directions as the world sees them; the axis came from the header.
-        let world = |d: [f32; 3]| place.direction_to_world(d.map(f64::from)).map(|x| x as f32);
-        summary.axis = summary.axis.map(world);
-        for cap in &mut summary.caps {
-            cap.normal = world(cap.normal);
-        }
-        if matches!(settings.context.axis, AxisChoice::Auto) && summary.axis.is_some() {
-            summary.axis_source = "label_map_header".into();
-        }
-    }
-    report.context = Some(summary);
-    report.method = Some(method);
-    report.smooth = Some(stats);
-    crate::smooth::check_result(
-        mesh.positions(),
-        &positions,
-        settings.max_displacement_voxels,
-        crate::smooth::displacement_unit(mesh, &topology, voxel),
-    )?;
+    // Metrics and displacements from the binary extraction for constrained label surfaces,
+    // else from the input (the triangles are the same).
+    let before = file.binary.as_ref().unwrap_or(mesh);
     let mut smoothed = mesh.clone();
     smoothed.positions_mut().copy_from_slice(&positions);
     let named_refs: Vec<(&str, &Mesh, &TriangleGrid)> = reference_meshes
@@ -484,20 +501,20 @@ fn process_structure(
         })
         .collect();
     let metrics = compare_prepared(
-        mesh,
+        before,
         &topology,
         &smoothed,
         &named_refs,
         voxel.map(|v| v.map(f64::from)),
     );
     report.metrics = Some(metrics);
-    let displacement: Vec<f32> = crate::metrics::displacements(mesh.positions(), &positions)
+    let displacement: Vec<f32> = crate::metrics::displacements(before.positions(), &positions)
         .into_iter()
         .map(|d| d as f32)
         .collect();
     let props: Vec<(&str, &[f32])> = if plan.annotate {
         vec![
-            ("weight", ctx.weights.as_slice()),
+            ("weight", weights.as_slice()),
             ("displacement", &displacement),
         ]
     } else {

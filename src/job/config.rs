@@ -133,6 +133,14 @@ pub struct Settings {
     pub skip: Option<bool>,
     /// Fail a structure whose smoothing moved a vertex further than this many voxel diagonals.
     pub max_displacement_voxels: Option<f32>,
+    /// Label-map structures: "constrained" (default) or "binary".
+    pub surface: Option<String>,
+    /// Label-map structures: Gaussian sigma of constrained surfaces (mm).
+    pub sigma_mm: Option<f64>,
+    /// Label-map structures: "smooth" (default) or "keep" one- and two-voxel bumps and pits.
+    pub noise: Option<String>,
+    /// Label-map structures: "protect" (default) or "off" for parts one voxel thick.
+    pub thin: Option<String>,
 }
 
 /// One `[[structure]]` table: settings for structures whose name matches `pattern`.

@@ -5,6 +5,8 @@
 //! Surfaces go back to world millimetres (LPS or RAS, as the plan says) when written.
 
 use super::plan::Plan;
+use crate::extract::constrained::{LabelSmoothing, Surface};
+use crate::extract::report::Extraction;
 use crate::io::{with_file_bytes, LoadedMesh, MeshMeta, SourceFormat};
 use crate::mesh::Mesh;
 pub use crate::report::label_map::{LabelEntry, LabelMapInfo, LabelSource};
@@ -120,6 +122,9 @@ pub struct LabelStructure {
     pub name: String,
     /// The surface, in `place`'s coordinates.
     pub mesh: LoadedMesh,
+    /// The plain consistent extraction with the same triangles, when `mesh` is a constrained
+    /// surface: what the report measures the extraction's change against.
+    pub binary: Option<Mesh>,
     pub place: Place,
     pub source: LabelSource,
 }
@@ -188,26 +193,58 @@ pub fn label_structures(
     let mut warnings = map.warnings.clone();
     for (layer_index, layer) in map.layers.iter().enumerate() {
         let grid = layer.grid;
-        let all = crate::extract::interfaces(layer);
-        let (surfaces, place) = match grid.frame() {
-            Some(frame) => (
-                crate::extract::label_surfaces_in_frame(layer, &all),
-                Place::Frame(index, frame),
-            ),
-            None => {
-                warnings.push(format!(
-                    "layer {layer_index}: the grid's axes are not perpendicular (a sheared grid); its surfaces are smoothed in world mm with the voxel size and stack axis estimated from each mesh"
-                ));
-                (crate::extract::label_surfaces(layer, &all), Place::World)
-            }
+        let names: Vec<String> = layer
+            .labels
+            .iter()
+            .map(|l| structure_name(plan, l.value, &l.name))
+            .collect();
+        // How each label is extracted (the background as [defaults] says).
+        let smoothing: Vec<LabelSmoothing> = std::iter::once(plan.default_settings().extraction)
+            .chain(names.iter().map(|n| plan.settings_for(n).extraction))
+            .collect();
+        let mut all = crate::extract::interfaces(layer);
+        let binary_positions = smoothing[1..]
+            .iter()
+            .any(|s| s.surface == Surface::Constrained)
+            .then(|| all.positions.clone());
+        let counts = crate::extract::constrained::place_on_weights(layer, &mut all, &smoothing);
+        let frame = grid.frame();
+        if frame.is_none() {
+            warnings.push(format!(
+                "layer {layer_index}: the grid's axes are not perpendicular (a sheared grid); its surfaces are smoothed in world mm with the voxel size and stack axis estimated from each mesh"
+            ));
+        }
+        let surfaces_of = |all: &crate::extract::Interfaces| match frame {
+            Some(_) => crate::extract::label_surfaces_in_frame(layer, all),
+            None => crate::extract::label_surfaces(layer, all),
         };
+        let place = match frame {
+            Some(f) => Place::Frame(index, f),
+            None => Place::World,
+        };
+        let surfaces = surfaces_of(&all);
+        let mut binary: Vec<Option<Mesh>> = match binary_positions {
+            Some(p) => {
+                all.positions = p;
+                surfaces_of(&all)
+                    .into_iter()
+                    .map(|s| Some(s.mesh))
+                    .collect()
+            }
+            None => Vec::new(),
+        };
+        binary.resize_with(surfaces.len(), || None);
+        drop(all);
         let geometry = match place {
             Place::Frame(..) => "the label map's header (smoothed in the grid's own frame, mm along its axes i, j, k; written in world mm)",
             Place::World => "the mesh, estimated (the grid is sheared, so the surface is smoothed in world mm)",
         };
-        for s in surfaces {
+        for (s, binary) in surfaces.into_iter().zip(binary) {
             let label = &layer.labels[s.label as usize - 1];
-            let name = structure_name(plan, label.value, &label.name);
+            let name = names[s.label as usize - 1].clone();
+            let own = smoothing[s.label as usize];
+            let binary = binary.filter(|_| own.surface == Surface::Constrained);
+            let extraction = Extraction::new(layer, &own, counts[s.label as usize]);
             entries.push(LabelEntry {
                 value: label.value,
                 structure: name.clone(),
@@ -230,6 +267,7 @@ pub fn label_structures(
                     warnings: Vec::new(),
                     format: SourceFormat::Extracted,
                 },
+                binary,
                 place,
                 source: LabelSource {
                     label_map: loaded.file.clone(),
@@ -240,6 +278,7 @@ pub fn label_structures(
                     voxel_mm: grid.spacing(),
                     stack_axis: grid.stack_axis(),
                     geometry: geometry.into(),
+                    extraction,
                 },
             });
         }

@@ -3,6 +3,7 @@
 //! consumes it and never sees raw TOML.
 
 use super::config::{Config, ConfigError, Settings};
+use crate::extract::constrained::{LabelSmoothing, Noise, Surface, Thin};
 use crate::io::{OutputFormat, ReadMode};
 use crate::smooth::{MethodKind, MethodParams};
 use crate::weights::{
@@ -34,6 +35,11 @@ pub struct StructureSettings {
     pub skip: bool,
     /// A structure whose smoothing moved a vertex further than this many voxel diagonals fails.
     pub max_displacement_voxels: f32,
+    /// How a structure made from a label map is extracted.
+    pub extraction: LabelSmoothing,
+    /// Whether `method` was configured: a constrained label surface is already smooth and
+    /// true to its voxels, so a mesh smoother runs on it only when asked for.
+    pub method_configured: bool,
 }
 
 /// The resolved configuration.
@@ -144,10 +150,22 @@ impl StructureSettings {
         t.push(("move_boundary", Value::Boolean(self.move_boundary)));
         t.push(("skip", Value::Boolean(self.skip)));
         t.push(("max_displacement_voxels", f(self.max_displacement_voxels)));
+        let e = &self.extraction;
+        let word = |w: &str| Value::String(w.into());
+        t.push(("surface", word(e.surface.name())));
+        if let Some(sigma) = e.sigma_mm {
+            t.push(("sigma_mm", Value::Float(sigma)));
+        }
+        t.push(("noise", word(e.noise.name())));
+        t.push(("thin", word(e.thin.name())));
         let mut text: String = t.iter().map(|(k, v)| format!("{k} = {v}\n")).collect();
         if self.voxel.is_none() {
             text.push_str("# voxel: reconstructed from each mesh where the method needs it\n");
         }
+        if e.sigma_mm.is_none() {
+            text.push_str("# sigma_mm: twice the label map's smallest voxel spacing\n");
+        }
+        text.push_str("# surface, sigma_mm, noise, thin: structures made from label maps\n");
         text
     }
 }
@@ -177,7 +195,11 @@ fn overlay(base: &Settings, over: &Settings) -> Settings {
         combine,
         move_boundary,
         skip,
-        max_displacement_voxels
+        max_displacement_voxels,
+        surface,
+        sigma_mm,
+        noise,
+        thin
     )
 }
 
@@ -264,6 +286,36 @@ fn resolve(s: &Settings) -> Result<StructureSettings, String> {
         threshold: s.threshold,
     };
     method.check(&params)?;
+    let extraction = LabelSmoothing {
+        surface: match s.surface.as_deref() {
+            None | Some("constrained") => Surface::Constrained,
+            Some("binary") => Surface::Binary,
+            Some(other) => {
+                return Err(format!(
+                    "surface = {other:?} must be \"constrained\" or \"binary\""
+                ))
+            }
+        },
+        sigma_mm: match s.sigma_mm {
+            Some(x) if !(x.is_finite() && x > 0.0) => {
+                return Err(format!(
+                    "sigma_mm = {} must be a positive number of mm",
+                    crate::units::readable(x)
+                ))
+            }
+            other => other,
+        },
+        noise: match s.noise.as_deref() {
+            None | Some("smooth") => Noise::Smooth,
+            Some("keep") => Noise::Keep,
+            Some(other) => return Err(format!("noise = {other:?} must be \"smooth\" or \"keep\"")),
+        },
+        thin: match s.thin.as_deref() {
+            None | Some("protect") => Thin::Protect,
+            Some("off") => Thin::Off,
+            Some(other) => return Err(format!("thin = {other:?} must be \"protect\" or \"off\"")),
+        },
+    };
     Ok(StructureSettings {
         method,
         params,
@@ -288,6 +340,8 @@ fn resolve(s: &Settings) -> Result<StructureSettings, String> {
         skip: s.skip.unwrap_or(false),
         max_displacement_voxels: positive("max_displacement_voxels", s.max_displacement_voxels)?
             .unwrap_or(crate::smooth::DEFAULT_MAX_DISPLACEMENT_VOXELS),
+        extraction,
+        method_configured: s.method.is_some(),
     })
 }
 
@@ -524,6 +578,12 @@ impl Plan {
             .fold(self.defaults.clone(), |acc, (_, _, s)| overlay(&acc, s));
         // Every table was resolved in `new`, and overlays of valid tables stay valid.
         resolve(&merged)
+            .unwrap_or_else(|_| resolve(&Settings::default()).expect("built-in defaults are valid"))
+    }
+
+    /// The `[defaults]` table's settings (what a structure no `[[structure]]` matches gets).
+    pub fn default_settings(&self) -> StructureSettings {
+        resolve(&self.defaults)
             .unwrap_or_else(|_| resolve(&Settings::default()).expect("built-in defaults are valid"))
     }
 

@@ -149,6 +149,19 @@ impl CaseReport {
                     v[2],
                     src.geometry
                 );
+                let e = &src.extraction;
+                let how = match e.sigma_mm {
+                    Some(sigma) => format!(
+                        "constrained (sigma {sigma:.3} mm, noise {}, thin {}): {} noise voxels relaxed ({} left pinned), {} thin voxels protected; metrics measure the change from the binary extraction",
+                        e.noise.map_or("", |n| n.name()),
+                        e.thin.map_or("", |t| t.name()),
+                        e.counts.noise_voxels,
+                        e.counts.noise_unsolved,
+                        e.counts.thin_voxels
+                    ),
+                    None => "binary (vertices at cell-edge midpoints)".into(),
+                };
+                let _ = writeln!(s, "\n`{}`: surface {how}", st.name);
             }
             for w in &st.warnings {
                 let _ = writeln!(s, "\n`{}`: {w}", st.name);

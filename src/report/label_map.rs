@@ -24,6 +24,8 @@ pub struct LabelSource {
     /// Where the voxel size and stack axis used for smoothing came from: the header (smoothed in
     /// the grid's frame) or, for sheared grids, estimates from the mesh (smoothed in world).
     pub geometry: String,
+    /// How the surface was extracted (binary or constrained, with its settings and counts).
+    pub extraction: crate::extract::report::Extraction,
 }
 
 /// What a case's label map held, for the case report.
