@@ -276,7 +276,12 @@ pub fn place_on_weights(
                 .is_some_and(|t| t.contains(v) && t.count_near(v, RADIUS) >= MIN_THIN_PART)
     };
     let [nx, ny, _] = volume.dims.map(|d| d as u64);
-    let linear = |v: [i64; 3]| v[0] as u64 + nx * (v[1] as u64 + ny * v[2] as u64);
+    // Linear index of a voxel in the volume; `None` for the background outside it.
+    let dims = volume.dims.map(|d| d as i64);
+    let linear = |v: [i64; 3]| {
+        ((0..3).all(|k| v[k] >= 0 && v[k] < dims[k]))
+            .then(|| v[0] as u64 + nx * (v[1] as u64 + ny * v[2] as u64))
+    };
 
     // Pass 1: the smoothed weights at both ends of every edge between two smoothed labels,
     // which ends are held as thin, and the voxels the clamp pins where noise may be relaxed.
@@ -305,8 +310,8 @@ pub fn place_on_weights(
             let hold = [held(lo, a, a_lo), held(hi, b, b_hi)];
             let mut held_voxels = Vec::new();
             for (h, v, l) in [(hold[0], lo, a), (hold[1], hi, b)] {
-                if h {
-                    held_voxels.push((linear(v), l));
+                if let (true, Some(index)) = (h, linear(v)) {
+                    held_voxels.push((index, l));
                 }
             }
             let mut pins = Vec::new();
@@ -318,9 +323,10 @@ pub fn place_on_weights(
                     (hi, b, b_hi, true, hold[1]),
                     (hi, a, a_hi, false, hold[1]),
                 ] {
-                    if !h && ((own && w < 0.5) || (!own && w > 0.5)) {
+                    let wrong_side = (own && w < 0.5) || (!own && w > 0.5);
+                    if let (false, true, Some(index)) = (h, wrong_side, linear(voxel)) {
                         pins.push(Pinned {
-                            voxel: linear(voxel),
+                            voxel: index,
                             label,
                             raw: w,
                         });
@@ -362,12 +368,17 @@ pub fn place_on_weights(
             let (a, b) = (label_at(volume, lo), label_at(volume, hi));
             let mut w = sample.w;
             if !relaxation.is_empty() {
-                let (vlo, vhi) = (linear(lo), linear(hi));
-                let (rlo, rhi) = ((vlo / nx) as usize, (vhi / nx) as usize);
-                w[0] += relaxation.delta(vlo, rlo, a);
-                w[1] += relaxation.delta(vlo, rlo, b);
-                w[2] += relaxation.delta(vhi, rhi, a);
-                w[3] += relaxation.delta(vhi, rhi, b);
+                // Offsets live inside the volume only.
+                if let Some(v) = linear(lo) {
+                    let row = (v / nx) as usize;
+                    w[0] += relaxation.delta(v, row, a);
+                    w[1] += relaxation.delta(v, row, b);
+                }
+                if let Some(v) = linear(hi) {
+                    let row = (v / nx) as usize;
+                    w[2] += relaxation.delta(v, row, a);
+                    w[3] += relaxation.delta(v, row, b);
+                }
             }
             // A held thin voxel keeps its label fully.
             if sample.held[0] {
