@@ -483,9 +483,9 @@ fn process_structure(
             settings.max_displacement_voxels,
             crate::smooth::displacement_unit(mesh, &topology, voxel),
         )?;
-        (positions, ctx.weights.as_slice().to_vec())
+        (positions, Some(ctx.weights))
     } else {
-        (mesh.positions().to_vec(), vec![1.0; mesh.n_vertices()])
+        (mesh.positions().to_vec(), None)
     };
     // Metrics and displacements from the binary extraction for constrained label surfaces,
     // else from the input (the triangles are the same).
@@ -512,14 +512,14 @@ fn process_structure(
         .into_iter()
         .map(|d| d as f32)
         .collect();
-    let props: Vec<(&str, &[f32])> = if plan.annotate {
-        vec![
-            ("weight", weights.as_slice()),
-            ("displacement", &displacement),
-        ]
-    } else {
-        Vec::new()
-    };
+    // Annotations: the smoothing weights when a smoother ran, and the displacement.
+    let mut props: Vec<(&str, &[f32])> = Vec::new();
+    if plan.annotate {
+        if let Some(w) = &weights {
+            props.push(("weight", w.as_slice()));
+        }
+        props.push(("displacement", &displacement));
+    }
     let out = encode(plan, stem, &in_world(&place, &smoothed), loaded, &props)?;
     report.status = "ok".into();
     Ok(out)
