@@ -16,7 +16,6 @@
 //! surface, so memory grows with the surface, not with the volume.
 
 use super::noise::Pinned;
-use super::thin::ThinVoxels;
 use super::{Interfaces, VERTEX_APEX, VERTEX_EDGE, VERTEX_FACE};
 use crate::volume::LabelVolume;
 use rayon::prelude::*;
@@ -248,33 +247,7 @@ pub fn place_on_weights(
         return vec![LabelCounts::default(); n_labels];
     }
     let relaxes = |l: u16| smoothed(l) && per[l as usize].noise == Noise::Smooth;
-    // Thin voxels of each label that protects them.
-    let protects: Vec<bool> = (0..n_labels as u16)
-        .map(|l| l > 0 && smoothed(l) && per[l as usize].thin == Thin::Protect)
-        .collect();
-    let boxes = if protects.iter().any(|&p| p) {
-        super::thin::label_boxes(volume)
-    } else {
-        Vec::new()
-    };
-    let thin: Vec<Option<ThinVoxels>> = (0..n_labels)
-        .into_par_iter()
-        .map(|l| match (protects[l], boxes.get(l).copied().flatten()) {
-            (true, Some(b)) => Some(super::thin::thin_voxels(volume, l as u16, b)),
-            _ => None,
-        })
-        .collect();
-    // A voxel is held at full weight when it is thin, its smoothed weight fell well below 1/2
-    // (the clamp alone would pin the surface onto its centre), and it belongs to a thin part
-    // of at least three voxels (a lone one- or two-voxel bump is surface noise). The rim of a
-    // thick slice's widest contour is thin by the opening too, but its weight stays near 1/2,
-    // so it smooths like any voxel.
-    let held = |v: [i64; 3], l: u16, own_weight: f32| {
-        own_weight < THIN_BELOW
-            && thin[l as usize]
-                .as_ref()
-                .is_some_and(|t| t.contains(v) && t.count_near(v, RADIUS) >= MIN_THIN_PART)
-    };
+    let protects = |l: u16| l > 0 && smoothed(l) && per[l as usize].thin == Thin::Protect;
     let [nx, ny, _] = volume.dims.map(|d| d as u64);
     // Linear index of a voxel in the volume; `None` for the background outside it.
     let dims = volume.dims.map(|d| d as i64);
@@ -282,73 +255,120 @@ pub fn place_on_weights(
         ((0..3).all(|k| v[k] >= 0 && v[k] < dims[k]))
             .then(|| v[0] as u64 + nx * (v[1] as u64 + ny * v[2] as u64))
     };
+    let coords = |i: u64| {
+        [
+            (i % nx) as i64,
+            (i / nx % ny) as i64,
+            (i / (nx * ny)) as i64,
+        ]
+    };
+    // The edge of an edge vertex between two smoothed labels: (axis, lo, hi, a, b).
+    let edge = |p: &[f64; 3]| {
+        let (axis, lo) = edge_of(p)?;
+        let mut hi = lo;
+        hi[axis] += 1;
+        let (a, b) = (label_at(volume, lo), label_at(volume, hi));
+        (a != b && smoothed(a) && smoothed(b)).then_some((axis, lo, hi, a, b))
+    };
 
-    // Pass 1: the smoothed weights at both ends of every edge between two smoothed labels,
-    // which ends are held as thin, and the voxels the clamp pins where noise may be relaxed.
-    struct Sample {
-        w: [f32; 4],
-        held: [bool; 2],
-        pins: Vec<Pinned>,
-        held_voxels: Vec<(u64, u16)>,
-    }
+    // Pass 1: the smoothed weights at both ends of every edge between two smoothed labels.
     let kinds = &all.kinds;
-    let samples: Vec<Option<Sample>> = all
+    let samples: Vec<Option<[f32; 4]>> = all
         .positions
         .par_iter()
         .zip(kinds.par_iter())
         .map(|(p, &kind)| {
-            let (axis, lo) = (kind == VERTEX_EDGE).then(|| edge_of(p)).flatten()?;
-            let mut hi = lo;
-            hi[axis] += 1;
-            let (a, b) = (label_at(volume, lo), label_at(volume, hi));
-            if a == b || !smoothed(a) || !smoothed(b) {
-                return None;
-            }
+            let (_, lo, hi, a, b) = (kind == VERTEX_EDGE).then(|| edge(p)).flatten()?;
             let g = [&kernels[a as usize], &kernels[b as usize]];
             let [a_lo, b_lo] = weights(volume, g, [a, b], lo);
             let [a_hi, b_hi] = weights(volume, g, [a, b], hi);
-            let hold = [held(lo, a, a_lo), held(hi, b, b_hi)];
-            let mut held_voxels = Vec::new();
-            for (h, v, l) in [(hold[0], lo, a), (hold[1], hi, b)] {
-                if let (true, Some(index)) = (h, linear(v)) {
-                    held_voxels.push((index, l));
-                }
-            }
-            let mut pins = Vec::new();
-            if relaxes(a) && relaxes(b) {
-                // lo holds a and hi holds b: a's weight must win at lo, b's at hi.
-                for (voxel, label, w, own, h) in [
-                    (lo, a, a_lo, true, hold[0]),
-                    (lo, b, b_lo, false, hold[0]),
-                    (hi, b, b_hi, true, hold[1]),
-                    (hi, a, a_hi, false, hold[1]),
-                ] {
-                    let wrong_side = (own && w < 0.5) || (!own && w > 0.5);
-                    if let (false, true, Some(index)) = (h, wrong_side, linear(voxel)) {
-                        pins.push(Pinned {
-                            voxel: index,
-                            label,
-                            raw: w,
-                        });
-                    }
-                }
-            }
-            Some(Sample {
-                w: [a_lo, b_lo, a_hi, b_hi],
-                held: hold,
-                pins,
-                held_voxels,
+            Some([a_lo, b_lo, a_hi, b_hi])
+        })
+        .collect();
+
+    // Thin parts (§6.3.4): a voxel is held at full weight when its smoothed weight fell well
+    // below 1/2 (the clamp alone would pin the surface onto its centre), it is thin by the
+    // dual-grid opening, and at least three such voxels of its label lie within 2 voxels (a
+    // lone one- or two-voxel bump is surface noise). The rim of a thick slice's widest contour
+    // is thin by the opening too, but its weight stays near 1/2, so it smooths like any voxel.
+    let mut low: Vec<(u16, u64)> = all
+        .positions
+        .par_iter()
+        .zip(samples.par_iter())
+        .flat_map_iter(|(p, w)| {
+            let ends = w.and_then(|w| {
+                let (_, lo, hi, a, b) = edge(p)?;
+                Some([(w[0], lo, a), (w[3], hi, b)])
+            });
+            ends.into_iter().flatten().filter_map(|(own, v, l)| {
+                (own < THIN_BELOW && protects(l)).then_some((l, linear(v)?))
             })
         })
         .collect();
-    let mut pinned = Vec::new();
-    let mut held_voxels = Vec::new();
-    for s in samples.iter().flatten() {
-        pinned.extend_from_slice(&s.pins);
-        held_voxels.extend_from_slice(&s.held_voxels);
-    }
-    held_voxels.sort_unstable();
-    held_voxels.dedup();
+    low.par_sort_unstable();
+    low.dedup();
+    let thin: Vec<(u16, u64)> = low
+        .into_par_iter()
+        .filter(|&(l, i)| super::thin::is_thin(volume, l, coords(i)))
+        .collect();
+    let near = |l: u16, c: [i64; 3]| {
+        let mut n = 0;
+        for dz in -RADIUS..=RADIUS {
+            for dy in -RADIUS..=RADIUS {
+                let (y, z) = (c[1] + dy, c[2] + dz);
+                let first = linear([(c[0] - RADIUS).max(0), y, z]);
+                let last = linear([(c[0] + RADIUS).min(dims[0] - 1), y, z]);
+                if let (Some(first), Some(last)) = (first, last) {
+                    let start = thin.partition_point(|&e| e < (l, first));
+                    let end = thin.partition_point(|&e| e <= (l, last));
+                    n += end - start;
+                }
+            }
+        }
+        n
+    };
+    let held: Vec<(u16, u64)> = thin
+        .par_iter()
+        .filter(|&&(l, i)| near(l, coords(i)) >= MIN_THIN_PART)
+        .copied()
+        .collect();
+    let is_held = |own_weight: f32, v: [i64; 3], l: u16| {
+        own_weight < THIN_BELOW && linear(v).is_some_and(|i| held.binary_search(&(l, i)).is_ok())
+    };
+
+    // Surface noise (§6.3.3): the voxels the clamp pins, where both labels relax noise.
+    let pinned: Vec<Pinned> = all
+        .positions
+        .par_iter()
+        .zip(samples.par_iter())
+        .flat_map_iter(|(p, w)| {
+            let mut pins = Vec::new();
+            let Some((w, (_, lo, hi, a, b))) = w.zip(edge(p)) else {
+                return pins;
+            };
+            if !(relaxes(a) && relaxes(b)) {
+                return pins;
+            }
+            let hold = [is_held(w[0], lo, a), is_held(w[3], hi, b)];
+            // lo holds a and hi holds b: a's weight must win at lo, b's at hi.
+            for (voxel, label, w, own, h) in [
+                (lo, a, w[0], true, hold[0]),
+                (lo, b, w[1], false, hold[0]),
+                (hi, b, w[3], true, hold[1]),
+                (hi, a, w[2], false, hold[1]),
+            ] {
+                let wrong_side = (own && w < 0.5) || (!own && w > 0.5);
+                if let (false, true, Some(index)) = (h, wrong_side, linear(voxel)) {
+                    pins.push(Pinned {
+                        voxel: index,
+                        label,
+                        raw: w,
+                    });
+                }
+            }
+            pins
+        })
+        .collect();
     let relaxation = super::noise::relax(volume.dims, &kernels, pinned, n_labels);
 
     // Pass 2: offsets, thin protection and the clamp; then the tie along the edge.
@@ -357,16 +377,10 @@ pub fn place_on_weights(
         .par_iter_mut()
         .zip(samples.par_iter())
         .for_each(|(p, sample)| {
-            let Some(sample) = sample else {
+            let Some((raw, (axis, lo, hi, a, b))) = sample.zip(edge(p)) else {
                 return;
             };
-            let Some((axis, lo)) = edge_of(p) else {
-                return;
-            };
-            let mut hi = lo;
-            hi[axis] += 1;
-            let (a, b) = (label_at(volume, lo), label_at(volume, hi));
-            let mut w = sample.w;
+            let mut w = raw;
             if !relaxation.is_empty() {
                 // Offsets live inside the volume only.
                 if let Some(v) = linear(lo) {
@@ -380,11 +394,12 @@ pub fn place_on_weights(
                     w[3] += relaxation.delta(v, row, b);
                 }
             }
-            // A held thin voxel keeps its label fully.
-            if sample.held[0] {
+            // A held thin voxel keeps its label fully (decided on the weights before offsets,
+            // as when pinning).
+            if is_held(raw[0], lo, a) {
                 (w[0], w[1]) = (1.0, 0.0);
             }
-            if sample.held[1] {
+            if is_held(raw[3], hi, b) {
                 (w[2], w[3]) = (0.0, 1.0);
             }
             // d = w_a - w_b: positive at lo and negative at hi after the clamp.
@@ -399,37 +414,57 @@ pub fn place_on_weights(
     drop(samples);
     // Branching points: the mean of their neighbours (edge vertices on the same face for face
     // points; the whole rim for cell points), faces first.
-    let mut neighbours: Vec<Vec<u32>> = vec![Vec::new(); all.positions.len()];
-    let mut link = |a: u32, b: u32| {
-        if all.kinds[a as usize] != VERTEX_EDGE {
-            neighbours[a as usize].push(b);
-        }
-    };
-    for (t, tri) in all.triangles.iter().enumerate() {
-        let apex = all.outer_apex[t];
-        for (x, y) in [(0, 1), (1, 2), (2, 0)] {
-            link(tri[x], tri[y]);
-            link(tri[y], tri[x]);
-        }
-        if apex != tri[2] {
-            for &v in &[tri[0], tri[1]] {
-                link(apex, v);
-                link(v, apex);
+    // Neighbours of the branching points, CSR: counted, then filled, in triangle order.
+    let kinds = &all.kinds;
+    let each_link = |f: &mut dyn FnMut(u32, u32)| {
+        for (tri, &apex) in all.triangles.iter().zip(&all.outer_apex) {
+            let mut link = |a: u32, b: u32| {
+                if kinds[a as usize] != VERTEX_EDGE {
+                    f(a, b);
+                }
+            };
+            for (x, y) in [(0, 1), (1, 2), (2, 0)] {
+                link(tri[x], tri[y]);
+                link(tri[y], tri[x]);
+            }
+            if apex != tri[2] {
+                for &v in &[tri[0], tri[1]] {
+                    link(apex, v);
+                    link(v, apex);
+                }
             }
         }
+    };
+    let mut start = vec![0u32; all.positions.len() + 1];
+    each_link(&mut |a, _| start[a as usize + 1] += 1);
+    for i in 1..start.len() {
+        start[i] += start[i - 1];
     }
+    let mut list = vec![0u32; start[all.positions.len()] as usize];
+    let mut fill = start.clone();
+    each_link(&mut |a, b| {
+        list[fill[a as usize] as usize] = b;
+        fill[a as usize] += 1;
+    });
+    drop(fill);
+    let groups: Vec<(usize, &[u32])> = (0..all.positions.len())
+        .filter(|&v| start[v + 1] > start[v])
+        .map(|v| (v, &list[start[v] as usize..start[v + 1] as usize]))
+        .collect();
     for kind in [VERTEX_FACE, VERTEX_APEX] {
-        let updates: Vec<(usize, [f64; 3])> = neighbours
+        let updates: Vec<(usize, [f64; 3])> = groups
             .par_iter()
-            .enumerate()
             .filter(|(v, _)| all.kinds[*v] == kind)
-            .filter_map(|(v, list)| {
+            .filter_map(|&(v, neighbours)| {
                 let own = all.positions[v];
                 // A face point's face: the axis along which it sits on a whole number.
                 let normal = (0..3).find(|&a| own[a].fract() == 0.0);
-                let mut seen: Vec<u32> = Vec::new();
+                let mut count = 0;
                 let mut sum = [0.0; 3];
-                for &n in list {
+                for (i, &n) in neighbours.iter().enumerate() {
+                    if neighbours[..i].contains(&n) {
+                        continue;
+                    }
                     let q = all.positions[n as usize];
                     let on_face = match (kind, normal) {
                         (VERTEX_FACE, Some(a)) => {
@@ -438,14 +473,14 @@ pub fn place_on_weights(
                         (VERTEX_FACE, None) => false,
                         _ => true,
                     };
-                    if on_face && !seen.contains(&n) {
-                        seen.push(n);
+                    if on_face {
+                        count += 1;
                         for c in 0..3 {
                             sum[c] += q[c];
                         }
                     }
                 }
-                (!seen.is_empty()).then(|| (v, sum.map(|x| x / seen.len() as f64)))
+                (count > 0).then(|| (v, sum.map(|x| x / count as f64)))
             })
             .collect();
         for (v, p) in updates {
@@ -456,7 +491,7 @@ pub fn place_on_weights(
         .map(|l| LabelCounts {
             noise_voxels: relaxation.relaxed_per_label[l],
             noise_unsolved: relaxation.unsolved_per_label[l],
-            thin_voxels: held_voxels.iter().filter(|(_, h)| *h as usize == l).count() as u64,
+            thin_voxels: held.iter().filter(|(h, _)| *h as usize == l).count() as u64,
         })
         .collect()
 }
