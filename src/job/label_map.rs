@@ -19,8 +19,9 @@ use std::path::Path;
 pub const MAX_LABELS: usize = 1000;
 
 /// Estimated peak bytes per voxel of a label map case: the stored labels (2), the decoded
-/// file (up to 4), the extraction, and smoothing the surfaces. Measured: 3.9 on a 512 x 512 x
-/// 300 u8 volume with 12 labels (2.1 M interface triangles, HC 20 iterations, peak RSS 308 MB).
+/// file (up to 4), the extraction, and smoothing the surfaces. Measured on a 512 x 512 x 300 u8
+/// volume with 12 labels (2.1 M interface triangles): 3.9 (binary surfaces, HC 20 iterations,
+/// peak RSS 308 MB), 4.6 (constrained surfaces with their binary copies, 358 MB).
 pub const MEMORY_PER_VOXEL: u64 = 8;
 
 /// A label map of a case, read and hashed.
