@@ -255,13 +255,6 @@ pub fn place_on_weights(
         ((0..3).all(|k| v[k] >= 0 && v[k] < dims[k]))
             .then(|| v[0] as u64 + nx * (v[1] as u64 + ny * v[2] as u64))
     };
-    let coords = |i: u64| {
-        [
-            (i % nx) as i64,
-            (i / nx % ny) as i64,
-            (i / (nx * ny)) as i64,
-        ]
-    };
     // The edge of an edge vertex between two smoothed labels: (axis, lo, hi, a, b).
     let edge = |p: &[f64; 3]| {
         let (axis, lo) = edge_of(p)?;
@@ -309,27 +302,12 @@ pub fn place_on_weights(
     low.dedup();
     let thin: Vec<(u16, u64)> = low
         .into_par_iter()
-        .filter(|&(l, i)| super::thin::is_thin(volume, l, coords(i)))
+        .filter(|&(l, i)| super::thin::is_thin(volume, l, super::noise::coords(volume.dims, i)))
         .collect();
-    let near = |l: u16, c: [i64; 3]| {
-        let mut n = 0;
-        for dz in -RADIUS..=RADIUS {
-            for dy in -RADIUS..=RADIUS {
-                let (y, z) = (c[1] + dy, c[2] + dz);
-                let first = linear([(c[0] - RADIUS).max(0), y, z]);
-                let last = linear([(c[0] + RADIUS).min(dims[0] - 1), y, z]);
-                if let (Some(first), Some(last)) = (first, last) {
-                    let start = thin.partition_point(|&e| e < (l, first));
-                    let end = thin.partition_point(|&e| e <= (l, last));
-                    n += end - start;
-                }
-            }
-        }
-        n
-    };
+    let near = |l: u16, c: [i64; 3]| super::noise::in_box(&thin, |&e| e, volume.dims, l, c).count();
     let held: Vec<(u16, u64)> = thin
         .par_iter()
-        .filter(|&&(l, i)| near(l, coords(i)) >= MIN_THIN_PART)
+        .filter(|&&(l, i)| near(l, super::noise::coords(volume.dims, i)) >= MIN_THIN_PART)
         .copied()
         .collect();
     let is_held = |own_weight: f32, v: [i64; 3], l: u16| {

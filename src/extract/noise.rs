@@ -67,7 +67,8 @@ impl Relaxation {
     }
 }
 
-fn coords(dims: [usize; 3], v: u64) -> [i64; 3] {
+/// Voxel coordinates of linear index `v` in a volume of `dims` voxels.
+pub(super) fn coords(dims: [usize; 3], v: u64) -> [i64; 3] {
     let (nx, ny) = (dims[0] as u64, dims[1] as u64);
     [
         (v % nx) as i64,
@@ -76,10 +77,11 @@ fn coords(dims: [usize; 3], v: u64) -> [i64; 3] {
     ]
 }
 
-/// Indices into `sorted` (by label, then voxel) of the entries of `label` in the 5 x 5 x 5 box
-/// around voxel `c`.
-fn in_box<'a>(
-    sorted: &'a [Pinned],
+/// Indices into `sorted` (ordered by `key`: label, then linear voxel index) of the entries of
+/// `label` in the 5 x 5 x 5 box around voxel `c` of a volume of `dims` voxels.
+pub(super) fn in_box<'a, T>(
+    sorted: &'a [T],
+    key: impl Fn(&T) -> (u16, u64) + Copy + 'a,
     dims: [usize; 3],
     label: u16,
     c: [i64; 3],
@@ -92,8 +94,8 @@ fn in_box<'a>(
             let base = (nx * (y + ny * z)) as u64;
             let lo = base + (c[0] - RADIUS).max(0) as u64;
             let hi = base + (c[0] + RADIUS).min(nx - 1) as u64;
-            let start = sorted.partition_point(|p| (p.label, p.voxel) < (label, lo));
-            let end = sorted.partition_point(|p| (p.label, p.voxel) <= (label, hi));
+            let start = sorted.partition_point(|p| key(p) < (label, lo));
+            let end = sorted.partition_point(|p| key(p) <= (label, hi));
             start..end
         })
 }
@@ -157,13 +159,14 @@ pub fn relax(
         unsolved_per_label: vec![0; n_labels],
         ..Default::default()
     };
-    pinned.sort_unstable_by_key(|p| (p.label, p.voxel));
+    let key = |p: &Pinned| (p.label, p.voxel);
+    pinned.sort_unstable_by_key(key);
     pinned.dedup_by(|a, b| (a.label, a.voxel) == (b.label, b.voxel));
     // Noise: few pinned voxels of its label around it (itself included in the count).
     let noise: Vec<Pinned> = pinned
         .iter()
         .filter(|p| {
-            in_box(&pinned, dims, p.label, coords(dims, p.voxel))
+            in_box(&pinned, key, dims, p.label, coords(dims, p.voxel))
                 .take(MAX_NEIGHBOURS + 2)
                 .count()
                 <= MAX_NEIGHBOURS + 1
@@ -176,7 +179,7 @@ pub fn relax(
     // Groups: noise voxels of one label within each other's kernel.
     let mut parent: Vec<usize> = (0..noise.len()).collect();
     for (i, p) in noise.iter().enumerate() {
-        for j in in_box(&noise, dims, p.label, coords(dims, p.voxel)).collect::<Vec<_>>() {
+        for j in in_box(&noise, key, dims, p.label, coords(dims, p.voxel)).collect::<Vec<_>>() {
             let (a, b) = (root(&mut parent, i), root(&mut parent, j));
             if a != b {
                 parent[a.max(b)] = a.min(b);
