@@ -9,8 +9,6 @@
 //! (the kernel's weights between its members). The clamp still runs afterwards: every voxel
 //! keeps its label either way.
 
-use rustc_hash::{FxHashMap, FxHashSet};
-
 /// Half-width of the kernel (voxels).
 const RADIUS: i64 = 2;
 /// Most other pinned voxels of the same label in a 5 x 5 x 5 neighbourhood for a voxel to be
@@ -34,13 +32,16 @@ pub struct Pinned {
     pub raw: f32,
 }
 
-/// The offsets' effect: weight added per (voxel, label), and which voxels were relaxed.
+/// The relaxed noise voxels and their offsets, which change the smoothed weights within the
+/// kernel's reach of each. Memory grows with the noise voxels, not with the voxels they reach.
 #[derive(Debug, Clone, Default)]
 pub struct Relaxation {
-    deltas: FxHashMap<(u64, u16), f32>,
-    /// Rows (y + ny * z) holding any delta: a quick no for the rest.
+    dims: [usize; 3],
+    kernels: Vec<[[f32; 5]; 3]>,
+    /// (label, voxel, offset) of every relaxed voxel, sorted.
+    offsets: Vec<(u16, u64, f64)>,
+    /// Rows (y + ny * z) within reach of any offset: a quick no for the rest.
     rows: Vec<bool>,
-    relaxed: FxHashSet<(u64, u16)>,
     /// Noise voxels relaxed, per dense label.
     pub relaxed_per_label: Vec<u64>,
     /// Noise voxels left pinned (their group too large or singular), per dense label.
@@ -50,20 +51,33 @@ pub struct Relaxation {
 impl Relaxation {
     /// Whether no weight changes anywhere.
     pub fn is_empty(&self) -> bool {
-        self.deltas.is_empty()
+        self.offsets.is_empty()
     }
 
-    /// Weight to add to `label`'s smoothed weight at `voxel` (in row `row`).
+    /// Weight to add to `label`'s smoothed weight at `voxel` (in row `row`): the kernel's
+    /// share of every offset of `label` within reach, summed in a fixed order.
     pub fn delta(&self, voxel: u64, row: usize, label: u16) -> f32 {
         if !self.rows.get(row).copied().unwrap_or(false) {
             return 0.0;
         }
-        self.deltas.get(&(voxel, label)).copied().unwrap_or(0.0)
+        let c = coords(self.dims, voxel);
+        let mut sum = 0.0;
+        for i in in_box(&self.offsets, |e| (e.0, e.1), self.dims, label, c) {
+            let (_, n, offset) = self.offsets[i];
+            let n = coords(self.dims, n);
+            sum += tap(
+                &self.kernels[label as usize],
+                std::array::from_fn(|k| c[k] - n[k]),
+            ) * offset;
+        }
+        sum as f32
     }
 
     /// Whether `voxel` was relaxed as noise for `label`.
     pub fn is_relaxed(&self, voxel: u64, label: u16) -> bool {
-        self.relaxed.contains(&(voxel, label))
+        self.offsets
+            .binary_search_by(|e| (e.0, e.1).cmp(&(label, voxel)))
+            .is_ok()
     }
 }
 
@@ -98,6 +112,16 @@ pub(super) fn in_box<'a, T>(
             let end = sorted.partition_point(|p| key(p) <= (label, hi));
             start..end
         })
+}
+
+/// The kernel's weight at offset `d` (voxels); 0 beyond its reach.
+fn tap(g: &[[f32; 5]; 3], d: [i64; 3]) -> f64 {
+    if d.iter().any(|x| x.abs() > RADIUS) {
+        return 0.0;
+    }
+    (0..3)
+        .map(|a| g[a][(d[a] + RADIUS) as usize] as f64)
+        .product()
 }
 
 fn root(parent: &mut [usize], mut i: usize) -> usize {
@@ -191,17 +215,11 @@ pub fn relax(
         let r = root(&mut parent, i);
         groups.entry(r).or_default().push(i);
     }
-    let tap = |label: u16, d: [i64; 3]| -> f64 {
-        if d.iter().any(|x| x.abs() > RADIUS) {
-            return 0.0;
-        }
-        let g = &kernels[label as usize];
-        (0..3)
-            .map(|a| g[a][(d[a] + RADIUS) as usize] as f64)
-            .product()
-    };
+    let tap = |label: u16, d: [i64; 3]| tap(&kernels[label as usize], d);
     out.rows = vec![false; dims[1] * dims[2]];
-    let [nx, ny, nz] = dims.map(|d| d as i64);
+    out.dims = dims;
+    out.kernels = kernels.to_vec();
+    let [_, ny, nz] = dims.map(|d| d as i64);
     for members in groups.values() {
         let label = noise[members[0]].label;
         let k = members.len();
@@ -228,30 +246,18 @@ pub fn relax(
         };
         out.relaxed_per_label[label as usize] += k as u64;
         for (m, (c, o)) in members.iter().zip(at.iter().zip(offsets)) {
-            out.relaxed.insert((noise[*m].voxel, label));
+            out.offsets.push((label, noise[*m].voxel, o));
             for dz in -RADIUS..=RADIUS {
                 for dy in -RADIUS..=RADIUS {
-                    for dx in -RADIUS..=RADIUS {
-                        let v = [c[0] + dx, c[1] + dy, c[2] + dz];
-                        if v[0] < 0
-                            || v[1] < 0
-                            || v[2] < 0
-                            || v[0] >= nx
-                            || v[1] >= ny
-                            || v[2] >= nz
-                        {
-                            continue;
-                        }
-                        let row = (v[1] + ny * v[2]) as usize;
-                        out.rows[row] = true;
-                        let index = v[0] as u64 + nx as u64 * row as u64;
-                        *out.deltas.entry((index, label)).or_insert(0.0) +=
-                            (tap(label, [dx, dy, dz]) * o) as f32;
+                    let (y, z) = (c[1] + dy, c[2] + dz);
+                    if y >= 0 && z >= 0 && y < ny && z < nz {
+                        out.rows[(y + ny * z) as usize] = true;
                     }
                 }
             }
         }
     }
+    out.offsets.sort_unstable_by_key(|e| (e.0, e.1));
     out
 }
 
