@@ -43,7 +43,10 @@ fn structure<'a>(report: &'a serde_json::Value, name: &str) -> &'a serde_json::V
         .unwrap_or_else(|| panic!("no structure {name} in {report}"))
 }
 
-const BASE: &str = r#"
+/// Cases under cases/, outputs in out/, labels 1 and 2 named.
+macro_rules! head {
+    () => {
+        r#"
 [input]
 roots = ["cases"]
 case_depth = 1
@@ -52,14 +55,21 @@ root = "out"
 [labels]
 1 = "tumor"
 2 = "vein"
-[defaults]
+"#
+    };
+}
+
+const BASE: &str = concat!(
+    head!(),
+    r#"[defaults]
 surface = "binary"
 method = "hc"
 iterations = 20
 [[structure]]
 pattern = "tumor"
 references = ["vein"]
-"#;
+"#
+);
 
 #[test]
 fn labels_become_structures_smoothed_with_the_header_geometry() {
@@ -558,16 +568,9 @@ fn extract_constrained_surfaces_from_the_command_line() {
 fn label_surfaces_are_constrained_by_default_and_per_structure() {
     let tmp = tempfile::tempdir().unwrap();
     phantom(&tmp.path().join("cases/neck"), &[]);
-    let text = r#"
-[input]
-roots = ["cases"]
-case_depth = 1
-[output]
-root = "out"
-[labels]
-1 = "tumor"
-2 = "vein"
-[[structure]]
+    let text = concat!(
+        head!(),
+        r#"[[structure]]
 pattern = "vein"
 noise = "keep"
 thin = "off"
@@ -575,7 +578,8 @@ sigma_mm = 0.7
 [[structure]]
 pattern = "label_3"
 surface = "binary"
-"#;
+"#
+    );
     let cfg = config(tmp.path(), text);
     let out = destair(&["run", cfg.to_str().unwrap()]);
     assert!(out.status.success(), "{}", stderr(&out));

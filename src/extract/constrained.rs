@@ -391,8 +391,8 @@ pub fn place_on_weights(
         });
     drop(samples);
     // Branching points: the mean of their neighbours (edge vertices on the same face for face
-    // points; the whole rim for cell points), faces first.
-    // Neighbours of the branching points, CSR: counted, then filled, in triangle order.
+    // points; the whole rim for cell points), faces first. Their neighbours as CSR, counted,
+    // then filled, in triangle order.
     let kinds = &all.kinds;
     let each_link = |f: &mut dyn FnMut(u32, u32)| {
         for (tri, &apex) in all.triangles.iter().zip(&all.outer_apex) {
