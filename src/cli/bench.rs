@@ -155,6 +155,8 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
                 "  extract all labels     {:.4} s  ({} interface triangles)",
                 r.extract_s, r.n_interface_triangles
             );
+            println!("    interfaces           {:.4} s", r.interfaces_s);
+            println!("    label surfaces       {:.4} s", r.assemble_s);
         }
         Args::Io {
             triangles,

@@ -84,13 +84,20 @@ pub fn interfaces(volume: &LabelVolume) -> Interfaces {
     use rayon::prelude::*;
     let nz = volume.dims[2] as i64;
     let n_slabs = (nz + 1 + SLAB - 1) / SLAB;
-    // Cell templates are derived on first use and kept per worker across its slabs.
+    // Cell templates are derived on first use and kept per worker across its slabs, with the
+    // size of the worker's last slab (neighbouring slabs are alike: reserving that much
+    // saves growing the outputs and the vertex index).
     let slabs: Vec<SlabOutput> = (0..n_slabs)
         .into_par_iter()
-        .map_init(FxHashMap::default, |templates, s| {
-            let k0 = -1 + s * SLAB;
-            slab(volume, k0..(k0 + SLAB).min(nz), templates)
-        })
+        .map_init(
+            || (FxHashMap::default(), [0usize; 2]),
+            |(templates, last), s| {
+                let k0 = -1 + s * SLAB;
+                let out = slab(volume, k0..(k0 + SLAB).min(nz), templates, *last);
+                *last = [out.positions.len(), out.triangles.len()];
+                out
+            },
+        )
         .collect();
     // Vertex numbers: a slab's vertices in its own order, except those on its bottom plane,
     // which are the previous slab's top-plane vertices (the same grid elements).
@@ -194,6 +201,7 @@ fn slab(
     volume: &LabelVolume,
     ks: std::ops::Range<i64>,
     templates: &mut FxHashMap<u32, Template>,
+    [n_vertices, n_triangles]: [usize; 2],
 ) -> SlabOutput {
     let [nx, ny, nz] = volume.dims.map(|d| d as i64);
     // A row of voxels along x, or none outside the volume (background).
@@ -217,19 +225,22 @@ fn slab(
         |i: i64, j: i64, k: i64| -> u64 { ((i + 1) + px * ((j + 1) + py * (k + 1))) as u64 };
     let (bottom, top) = (ks.start as f64, ks.end as f64);
     // Vertices on grid edges and faces, by key; a slab's surface is small enough for a hash
-    // map that stays in cache (dense per-plane tables were slower: sparse, scattered access).
-    let mut index: FxHashMap<u64, u32> = FxHashMap::default();
+    // map that stays in cache (dense per-plane tables with ids reset after use measured no
+    // faster).
+    let mut index: FxHashMap<u64, u32> =
+        FxHashMap::with_capacity_and_hasher(n_vertices, Default::default());
     let mut out = SlabOutput {
-        positions: Vec::new(),
-        kinds: Vec::new(),
-        triangles: Vec::new(),
-        outer_apex: Vec::new(),
-        sides: Vec::new(),
+        positions: Vec::with_capacity(n_vertices),
+        kinds: Vec::with_capacity(n_vertices),
+        triangles: Vec::with_capacity(n_triangles),
+        outer_apex: Vec::with_capacity(n_triangles),
+        sides: Vec::with_capacity(n_triangles),
         bottom: Vec::new(),
         top: Vec::new(),
     };
     let mut ids: Vec<u32> = Vec::with_capacity(32);
     let mut flags: Vec<u8> = vec![0; (nx.max(1) - 1) as usize];
+    let mut columns: Vec<u16> = vec![0; nx.max(1) as usize];
     for k in ks {
         for j in -1..ny {
             let rows = [row(j, k), row(j + 1, k), row(j, k + 1), row(j + 1, k + 1)];
@@ -244,7 +255,7 @@ fn slab(
                 _ => None,
             };
             if let Some(r) = full {
-                mixed_cells(r, &mut flags);
+                mixed_cells(r, &mut columns, &mut flags);
             }
             let mut next_i = -1;
             while next_i < nx {
@@ -335,18 +346,21 @@ fn slab(
 }
 
 /// For the cells between four full rows (x from 0 to nx - 2), 1 where the cell's eight
-/// corners do not all hold one label. Branch-free over the row, so the compiler vectorises it.
-fn mixed_cells(rows: [&[u16]; 4], flags: &mut [u8]) {
+/// corners do not all hold one label. Two branch-free passes over the row (the columns that
+/// differ within themselves, then the cells), so the compiler vectorises both; `columns` is
+/// scratch of at least nx entries.
+fn mixed_cells(rows: [&[u16]; 4], columns: &mut [u16], flags: &mut [u8]) {
     let [a, b, c, d] = rows;
     let n = flags.len();
-    // Column x differs within itself, or from column x + 1 (in row a; the columns themselves
-    // cover the other rows).
-    let column = |x: usize| ((a[x] != b[x]) | (a[x] != c[x]) | (a[x] != d[x])) as u8;
-    let mut prev = if n > 0 { column(0) } else { 0 };
-    for x in 0..n {
-        let next = column(x + 1);
-        flags[x] = prev | next | (a[x] != a[x + 1]) as u8;
-        prev = next;
+    // Column x: nonzero where its four voxels differ.
+    let columns = &mut columns[..n + 1];
+    for ((((col, &a), &b), &c), &d) in columns.iter_mut().zip(a).zip(b).zip(c).zip(d) {
+        *col = (a ^ b) | (a ^ c) | (a ^ d);
+    }
+    // Cell x: column x or x + 1 differs, or the columns differ from each other (in row a;
+    // the columns cover the other rows).
+    for (x, flag) in flags.iter_mut().enumerate() {
+        *flag = ((columns[x] | columns[x + 1] | (a[x] ^ a[x + 1])) != 0) as u8;
     }
 }
 
@@ -430,11 +444,29 @@ fn assemble(
 ) -> Vec<LabelSurface> {
     use rayon::prelude::*;
     let n_labels = volume.labels.len();
-    // Each triangle goes to the labels on its two sides (background has no surface).
-    let mut buckets: Vec<Vec<u32>> = vec![Vec::new(); n_labels + 1];
+    // Every vertex in mm once (most belong to two surfaces), in parallel.
+    let mm: Vec<[f32; 3]> = all
+        .positions
+        .par_iter()
+        .map(|&p| to_mm(p).map(|x| x as f32))
+        .collect();
+    // Each triangle goes to the labels on its two sides (background has no surface): the
+    // triangles of every label as CSR, counted, then filled in triangle order.
+    let mut start = vec![0usize; n_labels + 2];
+    for sides in &all.sides {
+        for &l in sides {
+            start[l as usize + 1] += 1;
+        }
+    }
+    for l in 1..start.len() {
+        start[l] += start[l - 1];
+    }
+    let mut members: Vec<u32> = crate::hugepages::zeroed_vec(start[n_labels + 1]);
+    let mut fill = start.clone();
     for (t, sides) in all.sides.iter().enumerate() {
         for &l in sides {
-            buckets[l as usize].push(t as u32);
+            members[fill[l as usize]] = t as u32;
+            fill[l as usize] += 1;
         }
     }
     // One vertex map per thread, reset after each label (only the entries it set), instead of
@@ -450,10 +482,11 @@ fn assemble(
             if local.len() != all.positions.len() {
                 *local = vec![u32::MAX; all.positions.len()];
             }
+            let own = &members[start[label as usize]..start[label as usize + 1]];
             let mut used: Vec<u32> = Vec::new();
             let mut positions = Vec::new();
-            let mut triangles = Vec::with_capacity(buckets[label as usize].len());
-            for &t in &buckets[label as usize] {
+            let mut triangles = Vec::with_capacity(own.len());
+            for &t in own {
                 let (tri, sides) = (all.triangles[t as usize], all.sides[t as usize]);
                 let tri = if sides[0] == label {
                     tri
@@ -469,7 +502,7 @@ fn assemble(
                     if local[v as usize] == u32::MAX {
                         local[v as usize] = positions.len() as u32;
                         used.push(v);
-                        positions.push(to_mm(all.positions[v as usize]).map(|x| x as f32));
+                        positions.push(mm[v as usize]);
                     }
                     local[v as usize]
                 }));

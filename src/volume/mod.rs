@@ -128,6 +128,20 @@ impl LabelVolume {
         big_endian: bool,
         (first, stride): (usize, usize),
     ) -> Result<LabelVolume, String> {
+        LabelVolume::from_raw_counted(dims, grid, bytes, t, big_endian, (first, stride), None)
+    }
+
+    /// [`LabelVolume::from_raw`] with the histogram of raw keys already taken, when `counted`
+    /// is given (a [`KeyHistogram`] fed while the bytes were being decompressed).
+    pub(crate) fn from_raw_counted(
+        dims: [usize; 3],
+        grid: Grid,
+        bytes: &[u8],
+        t: VoxelType,
+        big_endian: bool,
+        (first, stride): (usize, usize),
+        counted: Option<KeyHistogram>,
+    ) -> Result<LabelVolume, String> {
         use rayon::prelude::*;
         let size = t.size();
         let n: usize = dims.iter().product();
@@ -167,32 +181,35 @@ impl LabelVolume {
         };
         let n_keys = 1usize << (8 * size);
         const BLOCK: usize = 1 << 16;
-        // Pass 1: a histogram of raw keys, per block in parallel (tight loops per type).
+        // Pass 1: a histogram of raw keys, per block in parallel (tight loops per type),
+        // unless it was taken already.
         let histogram = |range: std::ops::Range<usize>| {
+            if stride == 1 {
+                let mut h = KeyHistogram::new(t, big_endian);
+                h.add(&bytes[(first + range.start) * size..(first + range.end) * size]);
+                return h.counts;
+            }
             let mut h = vec![0u64; n_keys];
-            if size == 1 && stride == 1 {
-                for &b in &bytes[first + range.start..first + range.end] {
-                    h[b as usize] += 1;
-                }
-            } else {
-                for v in range {
-                    h[key(v)] += 1;
-                }
+            for v in range {
+                h[key(v)] += 1;
             }
             h
         };
-        let counts_by_key = (0..n.div_ceil(BLOCK))
-            .into_par_iter()
-            .map(|b| histogram(b * BLOCK..((b + 1) * BLOCK).min(n)))
-            .reduce(
-                || vec![0u64; n_keys],
-                |mut a, b| {
-                    for (x, y) in a.iter_mut().zip(b) {
-                        *x += y;
-                    }
-                    a
-                },
-            );
+        let counts_by_key = match counted {
+            Some(h) if h.counts.len() == n_keys && stride == 1 => h.counts,
+            _ => (0..n.div_ceil(BLOCK))
+                .into_par_iter()
+                .map(|b| histogram(b * BLOCK..((b + 1) * BLOCK).min(n)))
+                .reduce(
+                    || vec![0u64; n_keys],
+                    |mut a, b| {
+                        for (x, y) in a.iter_mut().zip(b) {
+                            *x += y;
+                        }
+                        a
+                    },
+                ),
+        };
         let mut keys: Vec<usize> = (0..n_keys)
             .filter(|&k| counts_by_key[k] > 0 && value_of(k) != 0)
             .collect();
@@ -357,33 +374,145 @@ pub(crate) fn exact_slice(data: &[u8], offset: u64, n: u64) -> Result<&[u8], Str
     }
 }
 
-/// Gzip-decompresses at most `expected` bytes, failing clearly when the stream is truncated,
-/// corrupt, or holds more data than the header says. Memory grows with the data actually
-/// decoded, never with the header's claim.
-pub(crate) fn gunzip_exact(compressed: &[u8], expected: u64) -> Result<Vec<u8>, String> {
+/// How often each raw key (the bits of an 8- or 16-bit voxel, in native order) occurs, fed
+/// piece by piece; pieces must hold whole voxels.
+pub(crate) struct KeyHistogram {
+    size: usize,
+    big_endian: bool,
+    counts: Vec<u64>,
+}
+
+impl KeyHistogram {
+    /// An empty histogram for voxels of type `t` (32-bit types keep none).
+    pub(crate) fn new(t: VoxelType, big_endian: bool) -> KeyHistogram {
+        let size = t.size();
+        let n_keys = if size <= 2 { 1usize << (8 * size) } else { 0 };
+        KeyHistogram {
+            size,
+            big_endian,
+            counts: vec![0; n_keys],
+        }
+    }
+
+    /// Counts the voxels of `bytes`.
+    pub(crate) fn add(&mut self, bytes: &[u8]) {
+        match self.size {
+            1 => {
+                // Four tables in turn: labels come in long runs, and one table would make
+                // every voxel of a run wait on the same counter.
+                let mut four = [[0u32; 256]; 4];
+                for block in bytes.chunks(1 << 30) {
+                    let mut quads = block.chunks_exact(4);
+                    for q in &mut quads {
+                        for (table, &b) in four.iter_mut().zip(q) {
+                            table[b as usize] += 1;
+                        }
+                    }
+                    for &b in quads.remainder() {
+                        four[0][b as usize] += 1;
+                    }
+                    for table in &mut four {
+                        for (total, c) in self.counts.iter_mut().zip(table.iter_mut()) {
+                            *total += *c as u64;
+                            *c = 0;
+                        }
+                    }
+                }
+            }
+            2 => {
+                for pair in bytes.chunks_exact(2) {
+                    let key = if self.big_endian {
+                        u16::from_be_bytes([pair[0], pair[1]])
+                    } else {
+                        u16::from_le_bytes([pair[0], pair[1]])
+                    };
+                    self.counts[key as usize] += 1;
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
+/// Largest ratio of decompressed to compressed size DEFLATE can reach (about 1032:1), with
+/// room for the gzip framing: a header that claims more data than this is lying.
+const MAX_GZIP_RATIO: u64 = 1040;
+
+/// Gzip-decompresses the `n_bytes` that follow the first `skip` bytes of the stream (which
+/// must end there), handing them to `each` piece by piece on the calling thread while a
+/// second thread decompresses the rest: work on the data overlaps the serial inflate. Pieces
+/// hold whole multiples of 8 bytes except the last. Fails clearly when the stream is
+/// truncated, corrupt, or longer than that.
+pub(crate) fn gunzip_overlapped(
+    compressed: &[u8],
+    skip: u64,
+    n_bytes: u64,
+    mut each: impl FnMut(&[u8]),
+) -> Result<Vec<u8>, String> {
     use std::io::Read;
-    let mut out = Vec::with_capacity(expected.min(1 << 26) as usize);
+    const PIECE: usize = 4 << 20;
+    let corrupt = |e: std::io::Error| format!("the gzip data is corrupt or truncated ({e})");
+    let expected = skip.saturating_add(n_bytes);
+    if expected > (compressed.len() as u64).saturating_mul(MAX_GZIP_RATIO) + 4096 {
+        return Err(format!(
+            "the header says {expected} bytes; {} bytes of gzip data cannot hold that many",
+            compressed.len()
+        ));
+    }
+    let n =
+        usize::try_from(n_bytes).map_err(|_| format!("{n_bytes} bytes do not fit in memory"))?;
+    let mut out: Vec<u8> = Vec::new();
+    out.try_reserve_exact(n)
+        .map_err(|_| format!("cannot allocate {n} bytes for the voxels"))?;
+    crate::hugepages::advise(out.spare_capacity_mut());
+    out.resize(n, 0);
     let mut decoder = flate2::read::MultiGzDecoder::new(compressed);
-    (&mut decoder)
-        .take(expected)
-        .read_to_end(&mut out)
-        .map_err(|e| format!("the gzip data is corrupt or truncated ({e})"))?;
-    if (out.len() as u64) < expected {
+    let skipped =
+        std::io::copy(&mut (&mut decoder).take(skip), &mut std::io::sink()).map_err(corrupt)?;
+    if skipped < skip {
         return Err(format!(
-            "the gzip data ends after {} bytes; the header says {expected}",
-            out.len()
+            "the gzip data ends after {skipped} bytes; the header says {expected}"
         ));
     }
-    let mut probe = [0u8; 1];
-    if decoder
-        .read(&mut probe)
-        .map_err(|e| format!("the gzip data is corrupt or truncated ({e})"))?
-        > 0
-    {
-        return Err(format!(
-            "the gzip data holds more than the {expected} bytes the header says"
-        ));
-    }
+    let filled: &mut [u8] = &mut out;
+    std::thread::scope(|scope| {
+        let (send, receive) = crossbeam_channel::bounded::<&[u8]>(4);
+        let inflate = scope.spawn(move || -> Result<(), String> {
+            let mut done = skip;
+            for piece in filled.chunks_mut(PIECE) {
+                let mut at = 0;
+                while at < piece.len() {
+                    match decoder.read(&mut piece[at..]).map_err(corrupt)? {
+                        0 => {
+                            return Err(format!(
+                                "the gzip data ends after {} bytes; the header says {expected}",
+                                done + at as u64
+                            ))
+                        }
+                        k => at += k,
+                    }
+                }
+                done += at as u64;
+                if send.send(&*piece).is_err() {
+                    return Ok(());
+                }
+            }
+            drop(send);
+            let mut probe = [0u8; 1];
+            if decoder.read(&mut probe).map_err(corrupt)? > 0 {
+                return Err(format!(
+                    "the gzip data holds more than the {expected} bytes the header says"
+                ));
+            }
+            Ok(())
+        });
+        for piece in receive {
+            each(piece);
+        }
+        inflate
+            .join()
+            .unwrap_or_else(|_| Err("decompression failed".into()))
+    })?;
     Ok(out)
 }
 
@@ -495,15 +624,49 @@ mod tests {
         let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
         e.write_all(&[7u8; 1000]).unwrap();
         let gz = e.finish().unwrap();
-        assert_eq!(gunzip_exact(&gz, 1000).unwrap().len(), 1000);
-        assert!(gunzip_exact(&gz, 1001)
-            .unwrap_err()
-            .contains("ends after 1000"));
-        assert!(gunzip_exact(&gz, 999).unwrap_err().contains("more than"));
+        let whole = |skip, n| gunzip_overlapped(&gz, skip, n, |_| {});
+        assert_eq!(whole(0, 1000).unwrap(), vec![7u8; 1000]);
+        assert_eq!(whole(10, 990).unwrap().len(), 990);
+        assert!(whole(0, 1001).unwrap_err().contains("ends after 1000"));
+        assert!(whole(1001, 0).unwrap_err().contains("ends after 1000"));
+        assert!(whole(0, 999).unwrap_err().contains("more than"));
         for cut in [5, gz.len() / 2, gz.len() - 3] {
-            assert!(gunzip_exact(&gz[..cut], 1000).is_err(), "cut {cut}");
+            assert!(
+                gunzip_overlapped(&gz[..cut], 0, 1000, |_| {}).is_err(),
+                "cut {cut}"
+            );
         }
-        // A claim of 2^40 bytes is not allocated up front.
-        assert!(gunzip_exact(&gz, 1 << 40).is_err());
+        // A claim of 2^40 bytes is refused before anything is allocated.
+        assert!(whole(0, 1 << 40).unwrap_err().contains("cannot hold"));
+        assert!(whole(u64::MAX, u64::MAX).is_err());
+    }
+
+    #[test]
+    fn gzip_pieces_arrive_in_order_and_whole() {
+        use std::io::Write;
+        // Over two 4 MiB pieces, after a 352-byte header as NIfTI has.
+        let data: Vec<u8> = (0..9_000_000u32).map(|i| (i / 1000 % 251) as u8).collect();
+        let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+        e.write_all(&data).unwrap();
+        let gz = e.finish().unwrap();
+        let mut seen = Vec::new();
+        let mut sizes = Vec::new();
+        let out = gunzip_overlapped(&gz, 352, data.len() as u64 - 352, |piece| {
+            seen.extend_from_slice(piece);
+            sizes.push(piece.len());
+        })
+        .unwrap();
+        assert_eq!(out, &data[352..]);
+        assert_eq!(seen, out);
+        assert!(sizes.len() >= 3, "{sizes:?}");
+        assert!(sizes[..sizes.len() - 1].iter().all(|&s| s % 8 == 0));
+        // The histogram fed piece by piece is the one over the whole.
+        let mut pieces = KeyHistogram::new(VoxelType::U8, false);
+        let mut whole = KeyHistogram::new(VoxelType::U8, false);
+        gunzip_overlapped(&gz, 0, data.len() as u64, |piece| pieces.add(piece)).unwrap();
+        whole.add(&data);
+        assert_eq!(pieces.counts, whole.counts);
+        let expect: u64 = data.iter().filter(|&&b| b == 7).count() as u64;
+        assert_eq!(whole.counts[7], expect);
     }
 }

@@ -3,7 +3,9 @@
 //! header's sizes are checked against the data. Geometry from the sform when its code is set,
 //! else the qform, else the plain pixdim scaling (with a warning); NIfTI's world is RAS.
 
-use super::{gunzip_exact, voxel_count, Grid, LabelMap, LabelVolume, Space, VoxelType};
+use super::{
+    gunzip_overlapped, voxel_count, Grid, KeyHistogram, LabelMap, LabelVolume, Space, VoxelType,
+};
 use std::path::Path;
 
 /// Size of the NIfTI-1 header (bytes).
@@ -85,12 +87,18 @@ pub fn read(path: &Path) -> Result<LabelMap, String> {
             .read_to_end(&mut head)
             .map_err(|e| format!("not a gzip file, or a corrupt one ({e})"))?;
         let (h, offset, n_bytes) = header(&head)?;
-        let all = gunzip_exact(bytes, offset + n_bytes)?;
-        decode(&h, &all[offset as usize..])
+        // The histogram of voxel values is taken while the rest is still being inflated.
+        let mut counted = KeyHistogram::new(voxel_type(h.datatype)?, big_endian(&h));
+        let data = gunzip_overlapped(bytes, offset, n_bytes, |piece| counted.add(piece))?;
+        decode(&h, &data, Some(counted))
     } else {
         let (h, offset, n_bytes) = header(bytes)?;
-        decode(&h, super::exact_slice(bytes, offset, n_bytes)?)
+        decode(&h, super::exact_slice(bytes, offset, n_bytes)?, None)
     }
+}
+
+fn big_endian(h: &nifti::NiftiHeader) -> bool {
+    h.endianness == nifti::Endianness::Big
 }
 
 /// Voxels the header declares (see [`super::declared_voxels`]).
@@ -173,15 +181,19 @@ fn header(bytes: &[u8]) -> Result<(nifti::NiftiHeader, u64, u64), String> {
     Ok((h.clone(), h.vox_offset as u64, n * t.size() as u64))
 }
 
-fn decode(h: &nifti::NiftiHeader, data: &[u8]) -> Result<LabelMap, String> {
+fn decode(
+    h: &nifti::NiftiHeader,
+    data: &[u8],
+    counted: Option<KeyHistogram>,
+) -> Result<LabelMap, String> {
     let n_dims = h.dim[0] as usize;
     let d = |k: usize| if k <= n_dims { h.dim[k] as usize } else { 1 };
     let dims = [d(1), d(2), d(3)];
     let (grid, warning) = grid_of(h);
     grid.check()?;
     let t = voxel_type(h.datatype)?;
-    let big = h.endianness == nifti::Endianness::Big;
-    let volume = LabelVolume::from_raw(dims, grid, data, t, big, (0, 1))?;
+    let volume =
+        LabelVolume::from_raw_counted(dims, grid, data, t, big_endian(h), (0, 1), counted)?;
     Ok(LabelMap {
         layers: vec![volume],
         segments: Vec::new(),

@@ -4,7 +4,10 @@
 //! Slicer's `SegmentN_Name` / `_LabelValue` / `_Layer` fields. A 4D `.seg.nrrd` whose first
 //! axis is a list holds one layer of (possibly overlapping) segments per entry.
 
-use super::{gunzip_exact, voxel_count, Grid, LabelMap, LabelVolume, Segment, Space, VoxelType};
+use super::{
+    gunzip_overlapped, voxel_count, Grid, KeyHistogram, LabelMap, LabelVolume, Segment, Space,
+    VoxelType,
+};
 use std::collections::BTreeMap;
 use std::path::Path;
 
@@ -231,25 +234,33 @@ pub fn read(path: &Path) -> Result<LabelMap, String> {
         }
         None => &bytes[data_start..],
     };
+    // One layer's histogram of values is taken while the rest is still being inflated.
+    let mut counted = (n_layers == 1).then(|| KeyHistogram::new(t, big_endian));
     let raw: std::borrow::Cow<[u8]> = match field("encoding")? {
         "raw" => std::borrow::Cow::Borrowed(super::exact_slice(data, skip, n_bytes)?),
         "gzip" | "gz" => {
-            let mut all = gunzip_exact(data, skip + n_bytes)?;
-            all.drain(..skip as usize);
-            std::borrow::Cow::Owned(all)
+            std::borrow::Cow::Owned(gunzip_overlapped(data, skip, n_bytes, |piece| {
+                if let Some(h) = &mut counted {
+                    h.add(piece);
+                }
+            })?)
         }
         other => return Err(format!("encoding {other:?}: only raw and gzip are read")),
     };
+    if matches!(raw, std::borrow::Cow::Borrowed(_)) {
+        counted = None;
+    }
     let dims_usize = dims.map(|d| d as usize);
     let mut layers = Vec::with_capacity(n_layers as usize);
     for layer in 0..n_layers as usize {
-        layers.push(LabelVolume::from_raw(
+        layers.push(LabelVolume::from_raw_counted(
             dims_usize,
             grid,
             &raw,
             t,
             big_endian,
             (layer, n_layers as usize),
+            counted.take(),
         )?);
     }
     let segments = segments(&pairs, &mut warnings);
