@@ -4,6 +4,7 @@
 //! See ARCHITECTURE.md for the map of modules; each module is one concept.
 
 pub mod analysis;
+pub mod cfd;
 pub mod extract;
 pub mod hugepages;
 pub mod io;

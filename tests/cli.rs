@@ -370,3 +370,57 @@ fn inspect_context_and_context_aware_smoothing() {
         assert_eq!(run.status.code(), Some(2), "{bad:?}");
     }
 }
+
+#[test]
+fn inspect_patches_names_the_inlet_and_fails_on_a_wrong_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path().to_str().unwrap();
+    assert_ok(&destair(&[
+        "phantom",
+        "aneurysm",
+        "--open-ends",
+        "--out",
+        d,
+    ]));
+    let mesh = dir.path().join("aneurysm.ply");
+    let m = mesh.to_str().unwrap();
+
+    let out = destair(&["inspect", m, "--patches", "--json"]);
+    assert_ok(&out);
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let patches = v["patches"]["patches"].as_array().unwrap();
+    let names: Vec<&str> = patches
+        .iter()
+        .map(|p| p["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["inlet", "outlet_1", "outlet_2"]);
+    assert_eq!(patches[0]["id"], 2);
+    assert_eq!(patches[0]["kind"], "open_end");
+    let area = |p: &serde_json::Value| p["area_mm2"].as_f64().unwrap();
+    assert!(area(&patches[0]) > area(&patches[1]));
+
+    // The inlet named by a point near the second outlet's centre.
+    let c: Vec<f64> = patches[2]["centre_mm"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    let point = format!("{},{},{}", c[0] + 0.5, c[1], c[2]);
+    let out = destair(&["inspect", m, "--patches", "--inlet", &point]);
+    assert_ok(&out);
+    let text = String::from_utf8(out.stdout).unwrap();
+    let inlet_line = text.lines().find(|l| l.contains(" inlet ")).unwrap();
+    assert!(inlet_line.contains(&format!("{:.3}", c[0])), "{text}");
+
+    let out = destair(&["inspect", m, "--patches", "--expect-patches", "2"]);
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("3 patches found, 2 expected"), "{err}");
+    assert!(err.contains("aneurysm.ply"), "{err}");
+
+    let out = destair(&["inspect", m, "--patches", "--inlet", "1,2"]);
+    assert_eq!(out.status.code(), Some(2));
+    let out = destair(&["inspect", m, "--inlet", "0"]);
+    assert_eq!(out.status.code(), Some(2), "--inlet needs --patches");
+}

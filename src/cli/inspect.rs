@@ -23,8 +23,39 @@ pub struct Args {
     /// World convention for a label map's coordinates.
     #[arg(long, value_enum, default_value_t = SpaceArg::Lps)]
     space: SpaceArg,
+    /// Also find the vessel's boundary patches for flow solvers (caps and open ends: inlet,
+    /// outlets, wall); a surface that is not one 2-manifold vessel is an error with the reason.
+    #[arg(long)]
+    patches: bool,
+    /// Which patch is the inlet: `largest`, a patch index in order of decreasing area (0 is
+    /// the largest), or the point X,Y,Z (mm) nearest to its centre.
+    #[arg(long, default_value = "largest", value_parser = parse_inlet, requires = "patches")]
+    inlet: destair::cfd::Inlet,
+    /// Patches the vessel must have; another count is an error.
+    #[arg(long, requires = "patches")]
+    expect_patches: Option<usize>,
     #[command(flatten)]
     ctx: ContextArgs,
+}
+
+/// `largest`, an index, or X,Y,Z in mm.
+fn parse_inlet(s: &str) -> Result<destair::cfd::Inlet, String> {
+    use destair::cfd::Inlet;
+    if s == "largest" {
+        return Ok(Inlet::Largest);
+    }
+    if let Ok(index) = s.parse::<usize>() {
+        return Ok(Inlet::Index(index));
+    }
+    let parts: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("{s:?}: expected largest, a patch index, or X,Y,Z in mm"))?;
+    match parts[..] {
+        [x, y, z] if parts.iter().all(|v| v.is_finite()) => Ok(Inlet::Point([x, y, z])),
+        _ => Err(format!("{s:?}: a point is three finite numbers X,Y,Z (mm)")),
+    }
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -41,6 +72,9 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         context,
         export,
         space,
+        patches,
+        inlet,
+        expect_patches,
         ctx,
     } = args;
     ctx.check()?;
@@ -98,10 +132,17 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     let summary = analysis
         .as_ref()
         .map(|a| destair::report::inspect::context_summary(a, loaded.mesh.n_vertices()));
+    let found = patches.then(|| {
+        destair::cfd::find_patches(&loaded.mesh, &topology, inlet, expect_patches)
+            .map_err(|e| anyhow::anyhow!("{}: no patches: {e}", mesh.display()))
+    });
     if json {
         let mut value = serde_json::to_value(&report)?;
         if let (Some(s), Some(obj)) = (&summary, value.as_object_mut()) {
             obj.insert("context".into(), serde_json::to_value(s)?);
+        }
+        if let (Some(Ok(p)), Some(obj)) = (&found, value.as_object_mut()) {
+            obj.insert("patches".into(), serde_json::to_value(p)?);
         }
         println!("{}", serde_json::to_string_pretty(&value)?);
     } else {
@@ -109,6 +150,12 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         if let Some(s) = &summary {
             print!("{}", s.to_text());
         }
+        if let Some(Ok(p)) = &found {
+            print!("{}", destair::report::inspect::patches_text(p));
+        }
+    }
+    if let Some(Err(e)) = found {
+        return Err(e);
     }
     if let (Some(path), Some(a)) = (export, &analysis) {
         let n = loaded.mesh.n_vertices();

@@ -164,18 +164,26 @@ pub fn signed_volume(mesh: &Mesh) -> f64 {
     })
 }
 
+/// a - b in f64.
 #[inline]
-fn sub64(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+pub(crate) fn sub64(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 
+/// a x b in f64.
 #[inline]
-fn cross64(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+pub(crate) fn cross64(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [
         a[1] * b[2] - a[2] * b[1],
         a[2] * b[0] - a[0] * b[2],
         a[0] * b[1] - a[1] * b[0],
     ]
+}
+
+/// a . b in f64.
+#[inline]
+pub(crate) fn dot64(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 #[cfg(test)]

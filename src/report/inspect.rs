@@ -362,3 +362,30 @@ pub fn describe_voxel_size(v: &VoxelSizeEstimate) -> String {
         format!("partly reconstructable: {detail}")
     }
 }
+
+/// The patch table of `inspect --patches`: one line per patch, then the wall.
+pub fn patches_text(p: &crate::cfd::Patches) -> String {
+    use std::fmt::Write;
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "  patches {} (CellEntityIds: wall 1, patches from 2)",
+        p.patches.len()
+    );
+    for patch in &p.patches {
+        let c = patch.centre_mm;
+        let n = patch.normal;
+        let kind = match patch.kind {
+            crate::cfd::PatchKind::Cap => "cap",
+            crate::cfd::PatchKind::OpenEnd => "open end",
+            crate::cfd::PatchKind::ClosedEnd => "closed end",
+        };
+        let _ = writeln!(
+            out,
+            "    {} {:<10} {kind}: centre ({:.3}, {:.3}, {:.3}) mm, normal ({:.3}, {:.3}, {:.3}), {:.3} mm², diameter {:.3} mm, off-plane {:.2e} mm",
+            patch.id, patch.name, c[0], c[1], c[2], n[0], n[1], n[2], patch.area_mm2, patch.diameter_mm, patch.planarity_mm
+        );
+    }
+    let _ = writeln!(out, "    1 wall       {} faces", p.wall_faces);
+    out
+}

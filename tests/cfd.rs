@@ -1,0 +1,375 @@
+//! Boundary patches of vessel surfaces (the cfd profile): found, measured and ordered the same
+//! way on reruns and rotations, with the inlet chosen as asked; surfaces that are not one
+//! 2-manifold vessel refused with the reason.
+
+use destair::cfd::{
+    close_open_ends, find_patches, CloseError, Inlet, PatchError, PatchKind, Patches, WALL_ID,
+};
+use destair::phantom::marching_cubes::BorderEnds;
+use destair::phantom::volume::{apply, rotation_matrix};
+use destair::phantom::{named_case, PhantomOptions};
+use destair::{Mesh, Topology};
+
+fn aneurysm(ends: BorderEnds, rx: f64, ry: f64) -> Mesh {
+    let case = named_case(
+        "aneurysm",
+        &PhantomOptions {
+            rotate_x_deg: rx,
+            rotate_y_deg: ry,
+            ends,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    case.meshes[0].1.clone()
+}
+
+fn patches_of(mesh: &Mesh, inlet: Inlet) -> Result<Patches, PatchError> {
+    find_patches(mesh, &Topology::build(mesh), inlet, None)
+}
+
+fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
+    (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt()
+}
+
+fn angle_deg(a: [f64; 3], b: [f64; 3]) -> f64 {
+    let d: f64 = (0..3).map(|k| a[k] * b[k]).sum();
+    d.clamp(-1.0, 1.0).acos().to_degrees()
+}
+
+/// A unit cube (outward) without its two top triangles: one open square at z = 1.
+fn open_box() -> Mesh {
+    let p: Vec<[f32; 3]> = (0..8)
+        .map(|i| [(i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32])
+        .collect();
+    let quads = [
+        [0, 2, 3, 1],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ];
+    let t = quads
+        .iter()
+        .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
+        .collect();
+    Mesh::new(p, t).unwrap()
+}
+
+#[test]
+fn an_open_square_is_measured_as_computed_by_hand() {
+    let m = open_box();
+    let found = patches_of(&m, Inlet::Largest).unwrap();
+    assert_eq!(found.patches.len(), 1);
+    let p = &found.patches[0];
+    assert_eq!(
+        (p.id, p.name.as_str(), p.kind),
+        (2, "inlet", PatchKind::OpenEnd)
+    );
+    assert!((p.area_mm2 - 1.0).abs() < 1e-12, "{}", p.area_mm2);
+    assert!(
+        distance(p.centre_mm, [0.5, 0.5, 1.0]) < 1e-12,
+        "{:?}",
+        p.centre_mm
+    );
+    // Out of the fluid: up, where the missing top face would point.
+    assert!(
+        distance(p.normal, [0.0, 0.0, 1.0]) < 1e-12,
+        "{:?}",
+        p.normal
+    );
+    assert!((p.diameter_mm - (4.0 / std::f64::consts::PI).sqrt()).abs() < 1e-12);
+    assert_eq!(p.planarity_mm, 0.0);
+    assert_eq!(p.vertices.len(), 4);
+    assert_eq!(found.wall_faces, 10);
+    assert!(found.face_ids.iter().all(|&id| id == WALL_ID));
+
+    // Inside out, the fluid is still below the opening.
+    let (positions, triangles) = m.into_parts();
+    let flipped = Mesh::new(
+        positions,
+        triangles.iter().map(|t| [t[0], t[2], t[1]]).collect(),
+    )
+    .unwrap();
+    let p = &patches_of(&flipped, Inlet::Largest).unwrap().patches[0];
+    assert!(
+        distance(p.normal, [0.0, 0.0, 1.0]) < 1e-12,
+        "{:?}",
+        p.normal
+    );
+}
+
+#[test]
+fn the_capped_aneurysm_has_an_inlet_and_two_outlets() {
+    let m = aneurysm(BorderEnds::Capped, 0.0, 0.0);
+    let found = patches_of(&m, Inlet::Largest).unwrap();
+    let names: Vec<&str> = found.patches.iter().map(|p| p.name.as_str()).collect();
+    assert_eq!(names, ["inlet", "outlet_1", "outlet_2"]);
+    let ids: Vec<u32> = found.patches.iter().map(|p| p.id).collect();
+    assert_eq!(ids, [2, 3, 4]);
+    for p in &found.patches {
+        assert_eq!(p.kind, PatchKind::Cap);
+        // Marching-cubes caps lie on one plane half a voxel outside the volume.
+        assert!(p.planarity_mm < 1e-4, "{p:?}");
+        let faces = found.face_ids.iter().filter(|&&id| id == p.id).count();
+        assert_eq!(faces, p.faces.len());
+    }
+    // The inlet is the largest cap, at the bottom (normal -z); the outlets at the top.
+    let inlet = &found.patches[0];
+    assert!(inlet.area_mm2 > found.patches[1].area_mm2);
+    assert!(found.patches[1].area_mm2 >= found.patches[2].area_mm2);
+    assert!(
+        angle_deg(inlet.normal, [0.0, 0.0, -1.0]) < 1e-3,
+        "{inlet:?}"
+    );
+    for outlet in &found.patches[1..] {
+        assert!(
+            angle_deg(outlet.normal, [0.0, 0.0, 1.0]) < 1e-3,
+            "{outlet:?}"
+        );
+    }
+    let cap_faces: usize = found.patches.iter().map(|p| p.faces.len()).sum();
+    assert_eq!(found.wall_faces + cap_faces, m.n_triangles());
+    // Reruns give the same patches.
+    assert_eq!(patches_of(&m, Inlet::Largest).unwrap(), found);
+}
+
+#[test]
+fn open_ends_match_the_caps_they_replace() {
+    let capped = patches_of(&aneurysm(BorderEnds::Capped, 0.0, 0.0), Inlet::Largest).unwrap();
+    let open_mesh = aneurysm(BorderEnds::Open, 0.0, 0.0);
+    let open = patches_of(&open_mesh, Inlet::Largest).unwrap();
+    assert_eq!(open.patches.len(), 3);
+    for (c, o) in capped.patches.iter().zip(&open.patches) {
+        assert_eq!(o.kind, PatchKind::OpenEnd);
+        assert_eq!(c.name, o.name);
+        // The loop lies half a voxel (0.2 mm) inside the cap's plane, around the same centre.
+        assert!(angle_deg(c.normal, o.normal) < 1e-3, "{c:?} {o:?}");
+        assert!(o.planarity_mm < 1e-4, "{o:?}");
+        // The rim lies in a plane z = const: its area by the shoelace formula in x, y.
+        let p = open_mesh.positions();
+        let rim: Vec<[f64; 2]> = o
+            .vertices
+            .iter()
+            .map(|&v| [p[v as usize][0] as f64, p[v as usize][1] as f64])
+            .collect();
+        let shoelace: f64 = (0..rim.len())
+            .map(|i| {
+                let (a, b) = (rim[i], rim[(i + 1) % rim.len()]);
+                a[0] * b[1] - b[0] * a[1]
+            })
+            .sum::<f64>()
+            .abs()
+            / 2.0;
+        assert!((o.area_mm2 - shoelace).abs() < 1e-6, "{o:?} {shoelace}");
+
+        let lateral = distance(
+            [c.centre_mm[0], c.centre_mm[1], 0.0],
+            [o.centre_mm[0], o.centre_mm[1], 0.0],
+        );
+        assert!(lateral < 0.1, "{c:?} {o:?}");
+    }
+    assert!(open.face_ids.iter().all(|&id| id == WALL_ID));
+}
+
+#[test]
+fn patches_follow_the_vessel_when_it_is_rotated() {
+    for ends in [BorderEnds::Capped, BorderEnds::Open] {
+        let base = patches_of(&aneurysm(ends, 0.0, 0.0), Inlet::Largest).unwrap();
+        for (rx, ry) in [(30.0, 0.0), (0.0, 45.0), (60.0, 30.0), (90.0, 90.0)] {
+            let turned = patches_of(&aneurysm(ends, rx, ry), Inlet::Largest)
+                .unwrap_or_else(|e| panic!("{ends:?} {rx} {ry}: {e}"));
+            assert_eq!(
+                turned.patches.len(),
+                base.patches.len(),
+                "{ends:?} {rx} {ry}"
+            );
+            let r = rotation_matrix([rx, ry, 0.0]);
+            for (b, t) in base.patches.iter().zip(&turned.patches) {
+                assert_eq!((b.id, &b.name, b.kind), (t.id, &t.name, t.kind));
+                assert!((b.area_mm2 / t.area_mm2 - 1.0).abs() < 1e-3, "{b:?} {t:?}");
+                assert!(
+                    angle_deg(apply(&r, b.normal), t.normal) < 0.01,
+                    "{ends:?} {rx} {ry}: {b:?} {t:?}"
+                );
+            }
+            // Distances between patch centres do not depend on the rotation's centre.
+            for i in 0..base.patches.len() {
+                for j in 0..i {
+                    let d = |p: &Patches| distance(p.patches[i].centre_mm, p.patches[j].centre_mm);
+                    assert!((d(&base) - d(&turned)).abs() < 1e-3, "{ends:?} {rx} {ry}");
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn the_inlet_is_the_patch_the_config_names() {
+    let m = aneurysm(BorderEnds::Capped, 0.0, 0.0);
+    let by_area = patches_of(&m, Inlet::Largest).unwrap();
+    let second = by_area.patches[1].clone();
+    let third = by_area.patches[2].clone();
+    let by_index = patches_of(&m, Inlet::Index(1)).unwrap();
+    assert_eq!(by_index.patches[0].name, "inlet");
+    assert_eq!(by_index.patches[0].area_mm2, second.area_mm2);
+    assert_eq!(by_index.patches[1].area_mm2, by_area.patches[0].area_mm2);
+    let near = [
+        third.centre_mm[0] + 0.3,
+        third.centre_mm[1] - 0.2,
+        third.centre_mm[2] + 1.0,
+    ];
+    let by_point = patches_of(&m, Inlet::Point(near)).unwrap();
+    assert_eq!(by_point.patches[0].centre_mm, third.centre_mm);
+    assert_eq!(by_point.patches[0].id, 2);
+    // Cap faces carry the id of the patch they now are.
+    let faces = by_point.face_ids.iter().filter(|&&id| id == 2).count();
+    assert_eq!(faces, third.faces.len());
+    assert_eq!(
+        patches_of(&m, Inlet::Index(3)).unwrap_err(),
+        PatchError::InletIndex { index: 3, n: 3 }
+    );
+}
+
+#[test]
+fn a_count_other_than_expected_fails_with_both_numbers() {
+    let m = aneurysm(BorderEnds::Capped, 0.0, 0.0);
+    let t = Topology::build(&m);
+    assert!(find_patches(&m, &t, Inlet::Largest, Some(3)).is_ok());
+    let e = find_patches(&m, &t, Inlet::Largest, Some(4)).unwrap_err();
+    assert_eq!(
+        e,
+        PatchError::Count {
+            found: 3,
+            expected: 4
+        }
+    );
+    assert_eq!(
+        e.to_string(),
+        "3 patches found, 4 expected (expect_patches)"
+    );
+}
+
+#[test]
+fn surfaces_that_are_not_one_vessel_are_refused() {
+    // Two vessels in one file.
+    let m = open_box();
+    let (mut p, mut t) = m.into_parts();
+    let n = p.len() as u32;
+    p.extend(p.clone().iter().map(|q| [q[0] + 5.0, q[1], q[2]]));
+    t.extend(t.clone().iter().map(|f| f.map(|v| v + n)));
+    let two = Mesh::new(p, t).unwrap();
+    assert_eq!(
+        patches_of(&two, Inlet::Largest).unwrap_err(),
+        PatchError::Components(2)
+    );
+
+    // A third face on an edge.
+    let (mut p, mut t) = open_box().into_parts();
+    p.push([0.5, -1.0, 0.5]);
+    t.push([0, 1, 8]);
+    let fin = Mesh::new(p, t).unwrap();
+    assert!(matches!(
+        patches_of(&fin, Inlet::Largest).unwrap_err(),
+        PatchError::NonManifoldEdges(_)
+    ));
+
+    // One face turned against its neighbours.
+    let (p, mut t) = open_box().into_parts();
+    t[0] = [t[0][0], t[0][2], t[0][1]];
+    let turned = Mesh::new(p, t).unwrap();
+    assert!(matches!(
+        patches_of(&turned, Inlet::Largest).unwrap_err(),
+        PatchError::Inconsistent(_)
+    ));
+
+    // A closed round surface has no end.
+    let blob = named_case("sphere-iso", &PhantomOptions::default()).unwrap();
+    let e = patches_of(&blob.meshes[0].1, Inlet::Largest).unwrap_err();
+    assert_eq!(e, PatchError::NoEnds);
+    assert!(e.to_string().contains("no caps and no open ends"));
+}
+
+/// Largest distance of a patch's vertices from the plane through its centre (mm), measured
+/// on the f32 positions as written.
+fn off_plane(mesh: &Mesh, p: &destair::cfd::Patch) -> f64 {
+    let q = mesh.positions();
+    p.vertices
+        .iter()
+        .map(|&v| {
+            (0..3)
+                .map(|k| (q[v as usize][k] as f64 - p.centre_mm[k]) * p.normal[k])
+                .sum::<f64>()
+                .abs()
+        })
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn open_ends_close_into_flat_caps_and_a_closed_vessel() {
+    for (rx, ry) in [(0.0, 0.0), (30.0, 0.0), (60.0, 30.0)] {
+        let open = aneurysm(BorderEnds::Open, rx, ry);
+        let found = patches_of(&open, Inlet::Largest).unwrap();
+        let (closed, patches) = close_open_ends(&open, &found).unwrap();
+        let t = Topology::build(&closed);
+        assert!(t.is_closed_oriented_manifold(), "{rx} {ry}");
+        assert_eq!(t.n_components(), 1);
+        assert!(destair::mesh::geometry::signed_volume(&closed) > 0.0);
+        assert_eq!(closed.n_vertices(), open.n_vertices() + 3);
+        assert_eq!(patches.face_ids.len(), closed.n_triangles());
+        for (before, after) in found.patches.iter().zip(&patches.patches) {
+            assert_eq!(after.kind, PatchKind::ClosedEnd);
+            assert_eq!((before.id, &before.name), (after.id, &after.name));
+            assert!(
+                angle_deg(before.normal, after.normal) < 0.01,
+                "{before:?} {after:?}"
+            );
+            assert!((before.area_mm2 / after.area_mm2 - 1.0).abs() < 1e-3);
+            let faces = patches
+                .face_ids
+                .iter()
+                .filter(|&&id| id == after.id)
+                .count();
+            assert_eq!(faces, after.faces.len());
+            assert_eq!(faces, before.vertices.len());
+            // Planar to float precision, rim and centre alike.
+            let off = off_plane(&closed, after);
+            assert!(
+                off < 1e-5,
+                "{rx} {ry} {}: {off} mm off the plane",
+                after.name
+            );
+        }
+        // Every face of a closed end faces out of the fluid along the patch normal.
+        let normals = destair::mesh::geometry::face_normals(&closed);
+        for p in &patches.patches {
+            for &f in &p.faces {
+                let n = normals[f as usize].map(f64::from);
+                // f32 normals of small fan triangles: a few hundredths of a degree.
+                assert!(angle_deg(n, p.normal) < 0.05, "{rx} {ry} {}: {n:?}", p.name);
+            }
+        }
+    }
+    // Caps found on a closed vessel stay as they are.
+    let capped = aneurysm(BorderEnds::Capped, 0.0, 0.0);
+    let found = patches_of(&capped, Inlet::Largest).unwrap();
+    let (same, patches) = close_open_ends(&capped, &found).unwrap();
+    assert_eq!(same, capped);
+    assert_eq!(patches, found);
+}
+
+#[test]
+fn an_end_a_fan_cannot_close_is_refused() {
+    // An open box whose opening is a non-convex, L-shaped rim seen from its centre... made
+    // by pushing one rim corner of the open square past the centre.
+    let (mut p, t) = open_box().into_parts();
+    p[7] = [0.1, 0.1, 1.0];
+    let m = Mesh::new(p, t).unwrap();
+    let found = patches_of(&m, Inlet::Largest).unwrap();
+    assert_eq!(
+        close_open_ends(&m, &found).unwrap_err(),
+        CloseError::NotStarShaped {
+            name: "inlet".into()
+        }
+    );
+}
