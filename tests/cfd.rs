@@ -373,3 +373,152 @@ fn an_end_a_fan_cannot_close_is_refused() {
         }
     );
 }
+
+/// The bytes of the appended block at `offset` (after its 8-byte size) in a `.vtp` we wrote.
+fn vtp_block<'a>(vtp: &'a [u8], name: &str) -> &'a [u8] {
+    let text = String::from_utf8_lossy(vtp);
+    let tag = format!("Name=\"{name}\"");
+    let line = text.lines().find(|l| l.contains(&tag)).unwrap();
+    let offset: usize = line
+        .split("offset=\"")
+        .nth(1)
+        .unwrap()
+        .split('"')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    let start = vtp.windows(2).position(|w| w == b" _").unwrap() + 2 + offset;
+    let size = u64::from_le_bytes(vtp[start..start + 8].try_into().unwrap()) as usize;
+    &vtp[start + 8..start + 8 + size]
+}
+
+#[test]
+fn patch_files_hold_one_solid_per_patch_and_cell_entity_ids() {
+    let open = aneurysm(BorderEnds::Open, 30.0, 0.0);
+    let found = patches_of(&open, Inlet::Largest).unwrap();
+    let (closed, patches) = close_open_ends(&open, &found).unwrap();
+    let meta = destair::io::MeshMeta {
+        comments: vec!["SPACE=LPS".into()],
+        obj_info: vec![],
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let written =
+        destair::cfd::write_patch_files(dir.path(), "vessel", &closed, &meta, &patches).unwrap();
+    assert_eq!(
+        written,
+        destair::cfd::outputs::planned_files(dir.path(), "vessel", &patches)
+    );
+    let names: Vec<String> = written
+        .iter()
+        .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(
+        names,
+        [
+            "vessel_solids.stl",
+            "vessel_wall.stl",
+            "vessel_inlet.stl",
+            "vessel_outlet_1.stl",
+            "vessel_outlet_2.stl",
+            "vessel.vtp",
+            "vessel_patches.json"
+        ]
+    );
+    let read =
+        |name: &str| destair::io::read_mesh(&dir.path().join(name), &Default::default()).unwrap();
+
+    // Multi-solid STL: one solid per patch with its faces, the whole surface read back with
+    // every coordinate bit-exact and the same topology.
+    let text = std::fs::read_to_string(dir.path().join("vessel_solids.stl")).unwrap();
+    let mut solids: Vec<(String, usize)> = Vec::new();
+    for line in text.lines() {
+        if let Some(rest) = line.strip_prefix("solid ") {
+            solids.push((rest.split_whitespace().next().unwrap().into(), 0));
+        } else if line.trim_start().starts_with("facet") {
+            solids.last_mut().unwrap().1 += 1;
+        }
+    }
+    let mut expected = vec![("wall".to_string(), patches.wall_faces)];
+    expected.extend(
+        patches
+            .patches
+            .iter()
+            .map(|p| (p.name.clone(), p.faces.len())),
+    );
+    assert_eq!(solids, expected);
+    let back = read("vessel_solids.stl");
+    assert_eq!(back.meta.space(), Some("LPS"));
+    assert_eq!(back.mesh.n_triangles(), closed.n_triangles());
+    assert_eq!(back.mesh.n_vertices(), closed.n_vertices());
+    let sorted = |m: &Mesh| {
+        let mut v: Vec<[u32; 3]> = m.positions().iter().map(|p| p.map(f32::to_bits)).collect();
+        v.sort_unstable();
+        v
+    };
+    assert_eq!(sorted(&back.mesh), sorted(&closed));
+    assert!(Topology::build(&back.mesh).is_closed_oriented_manifold());
+
+    // One binary STL per patch.
+    for (name, faces) in &expected {
+        let m = read(&format!("vessel_{name}.stl")).mesh;
+        assert_eq!(m.n_triangles(), *faces, "{name}");
+    }
+
+    // VTP: CellEntityIds per face, points bit-exact, triangles as written.
+    let vtp = std::fs::read(dir.path().join("vessel.vtp")).unwrap();
+    let ids: Vec<u32> = vtp_block(&vtp, "CellEntityIds")
+        .chunks_exact(4)
+        .map(|b| i32::from_le_bytes(b.try_into().unwrap()) as u32)
+        .collect();
+    assert_eq!(ids, patches.face_ids);
+    let points: Vec<u32> = vtp_block(&vtp, "Points")
+        .chunks_exact(4)
+        .map(|b| u32::from_le_bytes(b.try_into().unwrap()))
+        .collect();
+    let expect: Vec<u32> = closed
+        .positions()
+        .iter()
+        .flat_map(|p| p.map(f32::to_bits))
+        .collect();
+    assert_eq!(points, expect);
+    let connectivity: Vec<u32> = vtp_block(&vtp, "connectivity")
+        .chunks_exact(8)
+        .map(|b| i64::from_le_bytes(b.try_into().unwrap()) as u32)
+        .collect();
+    assert_eq!(connectivity, closed.triangles().concat());
+    assert_eq!(vtp_block(&vtp, "SPACE"), b"LPS\0");
+
+    // The patch table.
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("vessel_patches.json")).unwrap())
+            .unwrap();
+    assert_eq!(json["space"], "LPS");
+    let table = json["patches"].as_array().unwrap();
+    assert_eq!(table.len(), 3);
+    assert_eq!(table[0]["name"], "inlet");
+    assert_eq!(table[0]["kind"], "closed_end");
+    assert_eq!(json["wall_faces"], patches.wall_faces);
+
+    // VTK's own reader, where a Python with VTK is at hand (DESTAIR_VTK_PYTHON, else python3).
+    let python = std::env::var("DESTAIR_VTK_PYTHON").unwrap_or_else(|_| "python3".into());
+    let script = "import sys, vtk\nr = vtk.vtkXMLPolyDataReader(); r.SetFileName(sys.argv[1]); r.Update()\no = r.GetOutput(); a = o.GetCellData().GetArray('CellEntityIds')\nprint(o.GetNumberOfPoints(), o.GetNumberOfCells(), *[int(a.GetValue(i)) for i in range(o.GetNumberOfCells())])";
+    match std::process::Command::new(&python)
+        .args(["-c", script])
+        .arg(dir.path().join("vessel.vtp"))
+        .output()
+    {
+        Ok(out) if out.status.success() => {
+            let got: Vec<usize> = String::from_utf8_lossy(&out.stdout)
+                .split_whitespace()
+                .map(|x| x.parse().unwrap())
+                .collect();
+            assert_eq!(got[0], closed.n_vertices());
+            assert_eq!(got[1], closed.n_triangles());
+            let ids: Vec<usize> = patches.face_ids.iter().map(|&x| x as usize).collect();
+            assert_eq!(&got[2..], &ids[..]);
+            eprintln!("VTK's vtkXMLPolyDataReader read the .vtp");
+        }
+        _ => eprintln!("no Python with VTK ({python}); the .vtp was checked by its bytes only"),
+    }
+}

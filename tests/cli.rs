@@ -419,6 +419,34 @@ fn inspect_patches_names_the_inlet_and_fails_on_a_wrong_count() {
     assert!(err.contains("3 patches found, 2 expected"), "{err}");
     assert!(err.contains("aneurysm.ply"), "{err}");
 
+    let files = dir.path().join("files");
+    let f = files.to_str().unwrap();
+    let out = destair(&["inspect", m, "--patches", "--patch-files", f]);
+    assert_eq!(out.status.code(), Some(2), "the folder does not exist");
+    std::fs::create_dir(&files).unwrap();
+    let out = destair(&[
+        "inspect",
+        m,
+        "--patches",
+        "--close-open-ends",
+        "--patch-files",
+        f,
+    ]);
+    assert_ok(&out);
+    let solids = std::fs::read_to_string(files.join("aneurysm_solids.stl")).unwrap();
+    let names: Vec<&str> = solids
+        .lines()
+        .filter_map(|l| l.strip_prefix("solid "))
+        .collect();
+    assert_eq!(names, ["wall", "inlet", "outlet_1", "outlet_2"]);
+    assert!(files.join("aneurysm.vtp").is_file());
+    let out = destair(&["inspect", m, "--close-open-ends"]);
+    assert_eq!(
+        out.status.code(),
+        Some(2),
+        "--close-open-ends needs --patch-files"
+    );
+
     let out = destair(&["inspect", m, "--patches", "--inlet", "1,2"]);
     assert_eq!(out.status.code(), Some(2));
     let out = destair(&["inspect", m, "--inlet", "0"]);

@@ -1,9 +1,12 @@
 //! The cfd profile: what a flow solver's mesher needs from a smoothed vessel surface. So far
-//! its boundary patches (inlet, outlets, wall) and open ends closed by flat caps; flow
-//! extensions, remeshing, checks and the solver-ready outputs follow.
+//! its boundary patches (inlet, outlets, wall), open ends closed by flat caps, and the files
+//! solvers' meshers take (multi-solid STL, VTP with `CellEntityIds`, the patch table); flow
+//! extensions, remeshing and the exact checks follow.
 
 pub mod close;
+pub mod outputs;
 pub mod patches;
 
 pub use close::{close_open_ends, CloseError};
+pub use outputs::write_patch_files;
 pub use patches::{find_patches, Inlet, Patch, PatchError, PatchKind, Patches, WALL_ID};

@@ -34,6 +34,14 @@ pub struct Args {
     /// Patches the vessel must have; another count is an error.
     #[arg(long, requires = "patches")]
     expect_patches: Option<usize>,
+    /// Close open ends with flat caps (rim moved onto the loop's plane, a fan from its centre)
+    /// before writing patch files.
+    #[arg(long, requires = "patch_files")]
+    close_open_ends: bool,
+    /// Write the files solvers' meshers take into this folder: STEM_solids.stl (one solid per
+    /// patch), STEM_NAME.stl per patch, STEM.vtp with CellEntityIds, STEM_patches.json.
+    #[arg(long, requires = "patches")]
+    patch_files: Option<PathBuf>,
     #[command(flatten)]
     ctx: ContextArgs,
 }
@@ -75,8 +83,19 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         patches,
         inlet,
         expect_patches,
+        close_open_ends,
+        patch_files,
         ctx,
     } = args;
+    if let Some(dir) = &patch_files {
+        if !dir.is_dir() {
+            return Err(super::UsageError(format!(
+                "{}: the folder for patch files does not exist",
+                dir.display()
+            ))
+            .into());
+        }
+    }
     ctx.check()?;
     if destair::volume::is_label_map(&mesh) {
         let space = space.space();
@@ -154,8 +173,35 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
             print!("{}", destair::report::inspect::patches_text(p));
         }
     }
-    if let Some(Err(e)) = found {
-        return Err(e);
+    let found = match found {
+        Some(Err(e)) => return Err(e),
+        Some(Ok(p)) => Some(p),
+        None => None,
+    };
+    if let (Some(dir), Some(found)) = (&patch_files, &found) {
+        let (closed, found) = if close_open_ends {
+            let (m, p) = destair::cfd::close_open_ends(&loaded.mesh, found)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", mesh.display()))?;
+            (std::borrow::Cow::Owned(m), std::borrow::Cow::Owned(p))
+        } else {
+            (
+                std::borrow::Cow::Borrowed(&loaded.mesh),
+                std::borrow::Cow::Borrowed(found),
+            )
+        };
+        let stem = mesh
+            .file_stem()
+            .map_or_else(|| "vessel".into(), |s| s.to_string_lossy().into_owned());
+        let planned = destair::cfd::outputs::planned_files(dir, &stem, &found);
+        for path in &planned {
+            refuse_overwriting_inputs(path, &[mesh.as_path()], false)?;
+        }
+        let written = destair::cfd::write_patch_files(dir, &stem, &closed, &loaded.meta, &found)?;
+        if !json {
+            for path in written {
+                println!("  wrote {}", path.display());
+            }
+        }
     }
     if let (Some(path), Some(a)) = (export, &analysis) {
         let n = loaded.mesh.n_vertices();

@@ -10,6 +10,7 @@ pub mod obj;
 pub mod ply;
 pub mod stl;
 mod text;
+pub mod vtp;
 
 pub use atomic::{remove_stale_temp_files, write_atomically};
 pub use identity::{check_regular_file, file_id, same_file, ProtectedFiles};

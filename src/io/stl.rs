@@ -266,6 +266,60 @@ pub fn write_stl(path: &Path, mesh: &Mesh, meta: &MeshMeta) -> Result<(), WriteE
     })
 }
 
+/// Writes `mesh` as one ASCII STL holding a `solid NAME` per entry of `solids` (its faces), as
+/// OpenFOAM's snappyHexMesh takes patches, atomically. The first solid's line carries the
+/// `SPACE=` tag when the mesh has one.
+pub fn write_stl_solids(
+    path: &Path,
+    mesh: &Mesh,
+    meta: &MeshMeta,
+    solids: &[(&str, &[u32])],
+) -> Result<(), WriteError> {
+    let bytes = encode_stl_solids(mesh, meta, solids);
+    write_atomically(path, |w| w.write_all(&bytes)).map_err(|source| WriteError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// Encodes a multi-solid ASCII STL in memory (see [`write_stl_solids`]). Names keep letters,
+/// digits, `_` and `-`; anything else becomes `_`.
+pub fn encode_stl_solids(mesh: &Mesh, meta: &MeshMeta, solids: &[(&str, &[u32])]) -> Vec<u8> {
+    use std::fmt::Write as _;
+    let p = mesh.positions();
+    let mut out = String::new();
+    for (k, (name, faces)) in solids.iter().enumerate() {
+        let name: String = name
+            .chars()
+            .map(|c| {
+                if c.is_ascii_alphanumeric() || c == '_' || c == '-' {
+                    c
+                } else {
+                    '_'
+                }
+            })
+            .collect();
+        let _ = write!(out, "solid {name}");
+        if let (0, Some(space)) = (k, meta.space()) {
+            let _ = write!(out, " SPACE={space}");
+        }
+        out.push('\n');
+        for &f in faces.iter() {
+            let t = mesh.triangles()[f as usize];
+            let n = normalize(triangle_area_vector(mesh, t));
+            let _ = writeln!(out, "  facet normal {:e} {:e} {:e}", n[0], n[1], n[2]);
+            out.push_str("    outer loop\n");
+            for v in t {
+                let q = p[v as usize];
+                let _ = writeln!(out, "      vertex {:e} {:e} {:e}", q[0], q[1], q[2]);
+            }
+            out.push_str("    endloop\n  endfacet\n");
+        }
+        let _ = writeln!(out, "endsolid {name}");
+    }
+    out.into_bytes()
+}
+
 /// Encodes binary STL in memory (see [`write_stl`]).
 pub fn encode_stl(mesh: &Mesh, meta: &MeshMeta) -> Vec<u8> {
     let mut out = Vec::new();

@@ -1,0 +1,95 @@
+//! Files a flow solver's mesher takes directly, written atomically next to each other:
+//! `STEM_solids.stl` (ASCII, one `solid` per patch named `wall`, `inlet`, `outlet_1`, ..., as
+//! OpenFOAM's snappyHexMesh expects), `STEM_NAME.stl` (binary, one per patch), `STEM.vtp` (the
+//! surface with VMTK's `CellEntityIds` cell array) and `STEM_patches.json` (the patch table).
+//! Open ends that were not closed have no faces and appear only in the JSON.
+
+use super::patches::{Patches, WALL_ID};
+use crate::io::vtp::{write_vtp, VtpArray};
+use crate::io::{write_atomically, MeshMeta, WriteError};
+use crate::mesh::Mesh;
+use std::path::{Path, PathBuf};
+
+/// The paths [`write_patch_files`] writes for `patches`, in its order (to check before
+/// writing that none is an input).
+pub fn planned_files(dir: &Path, stem: &str, patches: &Patches) -> Vec<PathBuf> {
+    let mut names = vec![format!("{stem}_solids.stl"), format!("{stem}_wall.stl")];
+    for p in patches.patches.iter().filter(|p| !p.faces.is_empty()) {
+        names.push(format!("{stem}_{}.stl", p.name));
+    }
+    names.push(format!("{stem}.vtp"));
+    names.push(format!("{stem}_patches.json"));
+    names.into_iter().map(|n| dir.join(n)).collect()
+}
+
+/// Writes the patch files of `mesh` into `dir`; returns their paths, in the order above.
+pub fn write_patch_files(
+    dir: &Path,
+    stem: &str,
+    mesh: &Mesh,
+    meta: &MeshMeta,
+    patches: &Patches,
+) -> Result<Vec<PathBuf>, WriteError> {
+    let mut written = Vec::new();
+    let wall: Vec<u32> = (0..mesh.n_triangles() as u32)
+        .filter(|&f| patches.face_ids.get(f as usize) == Some(&WALL_ID))
+        .collect();
+    let mut solids: Vec<(&str, &[u32])> = vec![("wall", &wall)];
+    for p in patches.patches.iter().filter(|p| !p.faces.is_empty()) {
+        solids.push((p.name.as_str(), &p.faces));
+    }
+    let path = dir.join(format!("{stem}_solids.stl"));
+    crate::io::stl::write_stl_solids(&path, mesh, meta, &solids)?;
+    written.push(path);
+    for (name, faces) in &solids {
+        let path = dir.join(format!("{stem}_{name}.stl"));
+        crate::io::stl::write_stl(&path, &submesh(mesh, faces), meta)?;
+        written.push(path);
+    }
+    let ids: Vec<i32> = patches.face_ids.iter().map(|&id| id as i32).collect();
+    let path = dir.join(format!("{stem}.vtp"));
+    write_vtp(
+        &path,
+        mesh,
+        meta,
+        &[],
+        &[VtpArray::Int32("CellEntityIds", &ids)],
+    )?;
+    written.push(path);
+    let path = dir.join(format!("{stem}_patches.json"));
+    let table = serde_json::json!({
+        "space": meta.space(),
+        "cell_entity_ids": "wall 1, then each patch's id",
+        "patches": patches.patches,
+        "wall_faces": patches.wall_faces,
+    });
+    let text = serde_json::to_vec_pretty(&table).map_err(|e| WriteError::Io {
+        path: path.clone(),
+        source: std::io::Error::other(e),
+    })?;
+    write_atomically(&path, |w| w.write_all(&text)).map_err(|source| WriteError::Io {
+        path: path.clone(),
+        source,
+    })?;
+    written.push(path);
+    Ok(written)
+}
+
+/// The faces `faces` of `mesh` as a mesh of their own (vertices renumbered in order of use).
+fn submesh(mesh: &Mesh, faces: &[u32]) -> Mesh {
+    let mut map = vec![u32::MAX; mesh.n_vertices()];
+    let mut positions = Vec::new();
+    let triangles = faces
+        .iter()
+        .map(|&f| {
+            mesh.triangles()[f as usize].map(|v| {
+                if map[v as usize] == u32::MAX {
+                    map[v as usize] = positions.len() as u32;
+                    positions.push(mesh.positions()[v as usize]);
+                }
+                map[v as usize]
+            })
+        })
+        .collect();
+    Mesh::new(positions, triangles).unwrap_or_default()
+}
