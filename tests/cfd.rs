@@ -2,6 +2,9 @@
 //! way on reruns and rotations, with the inlet chosen as asked; surfaces that are not one
 //! 2-manifold vessel refused with the reason.
 
+mod common;
+
+use common::open_box;
 use destair::cfd::{
     close_open_ends, find_patches, CloseError, Inlet, PatchError, PatchKind, Patches, WALL_ID,
 };
@@ -35,25 +38,6 @@ fn distance(a: [f64; 3], b: [f64; 3]) -> f64 {
 fn angle_deg(a: [f64; 3], b: [f64; 3]) -> f64 {
     let d: f64 = (0..3).map(|k| a[k] * b[k]).sum();
     d.clamp(-1.0, 1.0).acos().to_degrees()
-}
-
-/// A unit cube (outward) without its two top triangles: one open square at z = 1.
-fn open_box() -> Mesh {
-    let p: Vec<[f32; 3]> = (0..8)
-        .map(|i| [(i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32])
-        .collect();
-    let quads = [
-        [0, 2, 3, 1],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-    ];
-    let t = quads
-        .iter()
-        .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-        .collect();
-    Mesh::new(p, t).unwrap()
 }
 
 #[test]

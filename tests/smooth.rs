@@ -1,6 +1,8 @@
 //! Smoothers against hand-computed values and the papers' claims on the phantoms; metrics
 //! against brute force.
 
+mod common;
+
 use destair::metrics::{average_normal_curvature, enclosed_volume, surface_distance};
 use destair::phantom::{named_case, PhantomOptions};
 use destair::smooth::{boundary_vertices, cell_edge_axes, smooth, Method};
@@ -453,21 +455,7 @@ fn distances_match_brute_force_on_random_meshes() {
 #[test]
 fn open_mesh_volume_is_closed_by_fans() {
     // A unit cube without its top face: the fan over the top loop restores volume 1.
-    let p: Vec<[f32; 3]> = (0..8)
-        .map(|i| [(i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32])
-        .collect();
-    let quads = [
-        [0, 2, 3, 1],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-    ];
-    let t = quads
-        .iter()
-        .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-        .collect();
-    let m = Mesh::new(p, t).unwrap();
+    let m = common::open_box();
     let v = enclosed_volume(&m, &Topology::build(&m));
     assert_eq!(v.loops_closed_by_fans, 1);
     assert!((v.mm3 - 1.0).abs() < 1e-6, "{}", v.mm3);

@@ -43,7 +43,7 @@ pub fn write_patch_files(
     written.push(path);
     for (name, faces) in &solids {
         let path = dir.join(format!("{stem}_{name}.stl"));
-        crate::io::stl::write_stl(&path, &submesh(mesh, faces), meta)?;
+        crate::io::stl::write_stl(&path, &mesh.select_faces(faces), meta)?;
         written.push(path);
     }
     let ids: Vec<i32> = patches.face_ids.iter().map(|&id| id as i32).collect();
@@ -73,23 +73,4 @@ pub fn write_patch_files(
     })?;
     written.push(path);
     Ok(written)
-}
-
-/// The faces `faces` of `mesh` as a mesh of their own (vertices renumbered in order of use).
-fn submesh(mesh: &Mesh, faces: &[u32]) -> Mesh {
-    let mut map = vec![u32::MAX; mesh.n_vertices()];
-    let mut positions = Vec::new();
-    let triangles = faces
-        .iter()
-        .map(|&f| {
-            mesh.triangles()[f as usize].map(|v| {
-                if map[v as usize] == u32::MAX {
-                    map[v as usize] = positions.len() as u32;
-                    positions.push(mesh.positions()[v as usize]);
-                }
-                map[v as usize]
-            })
-        })
-        .collect();
-    Mesh::new(positions, triangles).unwrap_or_default()
 }

@@ -84,6 +84,29 @@ impl Mesh {
         }
     }
 
+    /// The faces `faces` as a mesh of their own: only the vertices they use, numbered in order
+    /// of first use (a patch of a surface, or a mesh without unreferenced vertices).
+    pub fn select_faces(&self, faces: &[u32]) -> Mesh {
+        let mut map = vec![u32::MAX; self.positions.len()];
+        let mut positions = Vec::new();
+        let triangles = faces
+            .iter()
+            .map(|&f| {
+                self.triangles[f as usize].map(|v| {
+                    if map[v as usize] == u32::MAX {
+                        map[v as usize] = positions.len() as u32;
+                        positions.push(self.positions[v as usize]);
+                    }
+                    map[v as usize]
+                })
+            })
+            .collect();
+        Mesh {
+            positions,
+            triangles,
+        }
+    }
+
     /// Vertex positions in mm, in file order.
     pub fn positions(&self) -> &[[f32; 3]] {
         &self.positions

@@ -282,22 +282,8 @@ pub fn ascii_stl(mesh: &Mesh, name: &str) -> Vec<u8> {
 /// The reference mesh renumbered in order of first appearance in its triangles, without the
 /// unreferenced vertex: what STL (which has no shared vertices) can carry.
 pub fn first_appearance(mesh: &Mesh) -> Mesh {
-    let mut map = vec![u32::MAX; mesh.n_vertices()];
-    let mut positions = Vec::new();
-    let triangles = mesh
-        .triangles()
-        .iter()
-        .map(|t| {
-            t.map(|v| {
-                if map[v as usize] == u32::MAX {
-                    map[v as usize] = positions.len() as u32;
-                    positions.push(mesh.positions()[v as usize]);
-                }
-                map[v as usize]
-            })
-        })
-        .collect();
-    Mesh::new(positions, triangles).unwrap()
+    let all: Vec<u32> = (0..mesh.n_triangles() as u32).collect();
+    mesh.select_faces(&all)
 }
 
 /// Bitwise equality of positions (so -0.0 != 0.0 and NaN payloads count).
@@ -308,4 +294,23 @@ pub fn same_bits(a: &Mesh, b: &Mesh) -> bool {
             .zip(b.positions())
             .all(|(p, q)| p.map(f32::to_bits) == q.map(f32::to_bits))
         && a.triangles() == b.triangles()
+}
+
+/// A unit cube (outward) without its two top triangles: one open square loop at z = 1.
+pub fn open_box() -> Mesh {
+    let p: Vec<[f32; 3]> = (0..8)
+        .map(|i| [(i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32])
+        .collect();
+    let quads = [
+        [0, 2, 3, 1],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ];
+    let t = quads
+        .iter()
+        .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
+        .collect();
+    Mesh::new(p, t).unwrap()
 }
