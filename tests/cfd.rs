@@ -334,6 +334,18 @@ fn open_ends_close_into_flat_caps_and_a_closed_vessel() {
             }
         }
     }
+    // Patches of another mesh are refused, not indexed out of range.
+    let open = aneurysm(BorderEnds::Open, 0.0, 0.0);
+    let found = patches_of(&open, Inlet::Largest).unwrap();
+    let small = open_box();
+    assert!(matches!(
+        close_open_ends(&small, &found).unwrap_err(),
+        CloseError::Mismatch(_)
+    ));
+    let dir = tempfile::tempdir().unwrap();
+    let meta = destair::io::MeshMeta::default();
+    assert!(destair::cfd::write_patch_files(dir.path(), "x", &small, &meta, &found).is_err());
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
     // Caps found on a closed vessel stay as they are.
     let capped = aneurysm(BorderEnds::Capped, 0.0, 0.0);
     let found = patches_of(&capped, Inlet::Largest).unwrap();

@@ -16,13 +16,24 @@ pub enum CloseError {
     NotStarShaped { name: String },
     #[error("the closed surface would have {0} vertices, more than indices can address")]
     TooLarge(usize),
+    #[error("the patches were not found on this mesh (vertex {0} is out of range)")]
+    Mismatch(u32),
     #[error("the closed surface is not a valid mesh: {0}")]
     Mesh(#[from] crate::mesh::MeshError),
 }
 
-/// The mesh with every open end of `patches` closed, and the patches with those ends as
-/// [`PatchKind::ClosedEnd`] holding their new faces (face ids extended to match).
+/// The mesh with every open end of `patches` (found on this mesh) closed, and the patches with
+/// those ends as [`PatchKind::ClosedEnd`] holding their new faces (face ids extended to match).
 pub fn close_open_ends(mesh: &Mesh, patches: &Patches) -> Result<(Mesh, Patches), CloseError> {
+    let n = mesh.n_vertices();
+    let out_of_range = patches
+        .patches
+        .iter()
+        .flat_map(|p| &p.vertices)
+        .find(|&&v| v as usize >= n);
+    if let Some(&v) = out_of_range {
+        return Err(CloseError::Mismatch(v));
+    }
     let mut positions = mesh.positions().to_vec();
     let mut triangles = mesh.triangles().to_vec();
     let mut out = patches.clone();

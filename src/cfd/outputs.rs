@@ -22,7 +22,8 @@ pub fn planned_files(dir: &Path, stem: &str, patches: &Patches) -> Vec<PathBuf> 
     names.into_iter().map(|n| dir.join(n)).collect()
 }
 
-/// Writes the patch files of `mesh` into `dir`; returns their paths, in the order above.
+/// Writes the patch files of `mesh` (whose patches are `patches`) into `dir`; returns their
+/// paths, in the order above.
 pub fn write_patch_files(
     dir: &Path,
     stem: &str,
@@ -30,6 +31,19 @@ pub fn write_patch_files(
     meta: &MeshMeta,
     patches: &Patches,
 ) -> Result<Vec<PathBuf>, WriteError> {
+    let n = mesh.n_triangles();
+    if patches.face_ids.len() != n
+        || patches
+            .patches
+            .iter()
+            .flat_map(|p| &p.faces)
+            .any(|&f| f as usize >= n)
+    {
+        return Err(WriteError::Io {
+            path: dir.to_path_buf(),
+            source: std::io::Error::other("the patches were not found on this mesh"),
+        });
+    }
     let mut written = Vec::new();
     let wall: Vec<u32> = (0..mesh.n_triangles() as u32)
         .filter(|&f| patches.face_ids.get(f as usize) == Some(&WALL_ID))

@@ -127,7 +127,11 @@ pub fn find_patches(
             topology.inconsistent_edges().len(),
         ));
     }
-    if let Some(open) = topology.boundary_loops().iter().find(|l| !l.closed) {
+    if let Some(open) = topology
+        .boundary_loops()
+        .iter()
+        .find(|l| !l.closed || l.vertices.len() < 3)
+    {
         return Err(PatchError::UnclosedBoundary(open.vertices.len()));
     }
     let p = mesh.positions();
