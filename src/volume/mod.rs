@@ -119,21 +119,10 @@ impl LabelVolume {
 impl LabelVolume {
     /// Builds a volume from raw voxel bytes of type `t` (every `stride`-th voxel from `first`,
     /// for one layer of an interleaved 4D file). 8- and 16-bit types go through a direct
-    /// value table in two parallel passes; 32-bit types through [`LabelVolume::from_values`].
-    pub fn from_raw(
-        dims: [usize; 3],
-        grid: Grid,
-        bytes: &[u8],
-        t: VoxelType,
-        big_endian: bool,
-        (first, stride): (usize, usize),
-    ) -> Result<LabelVolume, String> {
-        LabelVolume::from_raw_counted(dims, grid, bytes, t, big_endian, (first, stride), None)
-    }
-
-    /// [`LabelVolume::from_raw`] with the histogram of raw keys already taken, when `counted`
-    /// is given (a [`KeyHistogram`] fed while the bytes were being decompressed).
-    pub(crate) fn from_raw_counted(
+    /// value table in two parallel passes (the first skipped when `counted` holds the
+    /// histogram of raw keys already, fed while the bytes were being decompressed); 32-bit
+    /// types through [`LabelVolume::from_values`].
+    pub(crate) fn from_raw(
         dims: [usize; 3],
         grid: Grid,
         bytes: &[u8],
@@ -607,8 +596,9 @@ mod tests {
                         .map(|_| if rng.bool() { 0 } else { rng.u8(..) & 0x83 })
                         .collect();
                     for first in 0..stride {
-                        let fast = LabelVolume::from_raw(dims, g, &bytes, t, big, (first, stride))
-                            .unwrap();
+                        let fast =
+                            LabelVolume::from_raw(dims, g, &bytes, t, big, (first, stride), None)
+                                .unwrap();
                         let values = t.values(&bytes, big).skip(first).step_by(stride).take(n);
                         let slow = LabelVolume::from_values(dims, g, values).unwrap();
                         assert_eq!(fast, slow, "{t:?} big {big} stride {stride}");

@@ -192,8 +192,7 @@ fn decode(
     let (grid, warning) = grid_of(h);
     grid.check()?;
     let t = voxel_type(h.datatype)?;
-    let volume =
-        LabelVolume::from_raw_counted(dims, grid, data, t, big_endian(h), (0, 1), counted)?;
+    let volume = LabelVolume::from_raw(dims, grid, data, t, big_endian(h), (0, 1), counted)?;
     Ok(LabelMap {
         layers: vec![volume],
         segments: Vec::new(),

@@ -253,7 +253,7 @@ pub fn read(path: &Path) -> Result<LabelMap, String> {
     let dims_usize = dims.map(|d| d as usize);
     let mut layers = Vec::with_capacity(n_layers as usize);
     for layer in 0..n_layers as usize {
-        layers.push(LabelVolume::from_raw_counted(
+        layers.push(LabelVolume::from_raw(
             dims_usize,
             grid,
             &raw,
