@@ -447,6 +447,13 @@ fn inspect_patches_names_the_inlet_and_fails_on_a_wrong_count() {
         "--close-open-ends needs --patch-files"
     );
 
+    let map = dir.path().join("seg.nii.gz");
+    let (volume, _) =
+        destair::phantom::cases::label_map_case("labelmap-neck", &Default::default()).unwrap();
+    std::fs::write(&map, destair::volume::nifti::encode(&volume, true).unwrap()).unwrap();
+    let out = destair(&["inspect", map.to_str().unwrap(), "--patches"]);
+    assert_eq!(out.status.code(), Some(2), "a label map has no patches");
+
     let out = destair(&["inspect", m, "--patches", "--inlet", "1,2"]);
     assert_eq!(out.status.code(), Some(2));
     let out = destair(&["inspect", m, "--inlet", "0"]);

@@ -98,6 +98,13 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     }
     ctx.check()?;
     if destair::volume::is_label_map(&mesh) {
+        if patches {
+            return Err(super::UsageError(format!(
+                "{}: --patches takes a vessel mesh; extract the label map's surfaces first (destair extract)",
+                mesh.display()
+            ))
+            .into());
+        }
         let space = space.space();
         let map =
             destair::volume::read_label_map(&mesh, space).map_err(super::LabelMapInputError)?;
