@@ -6,7 +6,7 @@
 
 use super::patches::{Patches, WALL_ID};
 use crate::io::vtp::{write_vtp, VtpArray};
-use crate::io::{write_atomically, MeshMeta, WriteError};
+use crate::io::{MeshMeta, WriteError};
 use crate::mesh::Mesh;
 use std::path::{Path, PathBuf};
 
@@ -81,10 +81,7 @@ pub fn write_patch_files(
         path: path.clone(),
         source: std::io::Error::other(e),
     })?;
-    write_atomically(&path, |w| w.write_all(&text)).map_err(|source| WriteError::Io {
-        path: path.clone(),
-        source,
-    })?;
+    crate::io::write_bytes_atomically(&path, &text)?;
     written.push(path);
     Ok(written)
 }

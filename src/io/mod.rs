@@ -256,6 +256,16 @@ pub enum WriteError {
     },
     #[error("vertex property {name:?}: {message}")]
     InvalidProperty { name: String, message: String },
+    #[error("array {name:?}: {message}")]
+    InvalidArray { name: String, message: String },
+}
+
+/// Writes `bytes` to `path` atomically (temp file + rename), the error naming the path.
+pub(crate) fn write_bytes_atomically(path: &Path, bytes: &[u8]) -> Result<(), WriteError> {
+    write_atomically(path, |w| w.write_all(bytes)).map_err(|source| WriteError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
 }
 
 /// Rows encoded per batch by [`write_rows`]; bounds the writer's buffer to a few MB.

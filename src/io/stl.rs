@@ -275,11 +275,7 @@ pub fn write_stl_solids(
     meta: &MeshMeta,
     solids: &[(&str, &[u32])],
 ) -> Result<(), WriteError> {
-    let bytes = encode_stl_solids(mesh, meta, solids);
-    write_atomically(path, |w| w.write_all(&bytes)).map_err(|source| WriteError::Io {
-        path: path.to_path_buf(),
-        source,
-    })
+    crate::io::write_bytes_atomically(path, &encode_stl_solids(mesh, meta, solids))
 }
 
 /// Encodes a multi-solid ASCII STL in memory (see [`write_stl_solids`]). Names keep letters,

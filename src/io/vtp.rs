@@ -4,9 +4,8 @@
 //! triangles as Int64 connectivity and offsets. The coordinate convention goes into an XML
 //! comment and a `SPACE` field-data string.
 
-use crate::io::{write_atomically, MeshMeta, WriteError};
+use crate::io::{MeshMeta, WriteError};
 use crate::mesh::Mesh;
-use std::io::Write;
 use std::path::Path;
 
 /// One named array: a value per vertex (point data) or per face (cell data).
@@ -55,12 +54,8 @@ pub fn write_vtp(
     point_data: &[VtpArray],
     cell_data: &[VtpArray],
 ) -> Result<(), WriteError> {
-    let io_error = |source| WriteError::Io {
-        path: path.to_path_buf(),
-        source,
-    };
-    let bytes = encode_vtp(mesh, meta, point_data, cell_data).map_err(io_error)?;
-    write_atomically(path, |w| w.write_all(&bytes)).map_err(io_error)
+    let bytes = encode_vtp(mesh, meta, point_data, cell_data)?;
+    crate::io::write_bytes_atomically(path, &bytes)
 }
 
 /// Encodes `.vtp` in memory (see [`write_vtp`]).
@@ -69,18 +64,17 @@ pub fn encode_vtp(
     meta: &MeshMeta,
     point_data: &[VtpArray],
     cell_data: &[VtpArray],
-) -> std::io::Result<Vec<u8>> {
+) -> Result<Vec<u8>, WriteError> {
     let (n_points, n_cells) = (mesh.n_vertices(), mesh.n_triangles());
     for (arrays, n, what) in [
         (point_data, n_points, "vertices"),
         (cell_data, n_cells, "faces"),
     ] {
         if let Some(a) = arrays.iter().find(|a| a.len() != n) {
-            return Err(std::io::Error::other(format!(
-                "array {:?} has {} values for {n} {what}",
-                a.name(),
-                a.len()
-            )));
+            return Err(WriteError::InvalidArray {
+                name: a.name().to_string(),
+                message: format!("{} values for {n} {what}", a.len()),
+            });
         }
     }
     // The appended blocks, in the order their headers name them.
@@ -153,8 +147,8 @@ pub fn encode_vtp(
     let mut out = xml.into_bytes();
     out.reserve(offset as usize + 64);
     for block in blocks {
-        out.write_all(&(block.len() as u64).to_le_bytes())?;
-        out.write_all(&block)?;
+        out.extend_from_slice(&(block.len() as u64).to_le_bytes());
+        out.extend_from_slice(&block);
     }
     out.extend_from_slice(b"\n  </AppendedData>\n</VTKFile>\n");
     Ok(out)
@@ -186,7 +180,7 @@ mod tests {
         let e = encode_vtp(&m, &meta, &[VtpArray::Float32("weight", &[1.0])], &[]).unwrap_err();
         assert!(
             e.to_string()
-                .contains("\"weight\" has 1 values for 3 vertices"),
+                .contains("array \"weight\": 1 values for 3 vertices"),
             "{e}"
         );
         let e = encode_vtp(&m, &meta, &[], &[VtpArray::Int32("CellEntityIds", &[])]).unwrap_err();
