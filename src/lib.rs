@@ -13,6 +13,7 @@ pub mod mesh;
 pub mod metrics;
 pub mod parallel;
 pub mod phantom;
+pub mod remesh;
 pub mod report;
 pub mod smooth;
 pub mod spatial;

@@ -518,3 +518,37 @@ fn patch_files_hold_one_solid_per_patch_and_cell_entity_ids() {
         _ => eprintln!("no Python with VTK ({python}); the .vtp was checked by its bytes only"),
     }
 }
+
+#[test]
+fn surface_checks_name_what_is_wrong() {
+    use destair::cfd::check_surface;
+    // The closed capped aneurysm passes.
+    let m = aneurysm(BorderEnds::Capped, 0.0, 0.0);
+    let c = check_surface(&m, &Topology::build(&m), false, None);
+    assert!(c.failures().is_empty(), "{:?}", c.failures());
+    assert!(c.signed_volume_mm3 > 0.0);
+    // Turned inside out: normals into the fluid.
+    let flipped: Vec<[u32; 3]> = m.triangles().iter().map(|t| [t[0], t[2], t[1]]).collect();
+    let inside_out = Mesh::new(m.positions().to_vec(), flipped).unwrap();
+    let c = check_surface(&inside_out, &Topology::build(&inside_out), false, None);
+    assert!(
+        c.failures().iter().any(|f| f.contains("into the fluid")),
+        "{:?}",
+        c.failures()
+    );
+    // One vertex pushed through the opposite wall: self-intersections, and where.
+    let mut p = m.positions().to_vec();
+    let v = (0..p.len())
+        .max_by(|&a, &b| p[a][0].total_cmp(&p[b][0]))
+        .unwrap();
+    p[v][0] -= 8.0;
+    let pushed = Mesh::new(p, m.triangles().to_vec()).unwrap();
+    let c = check_surface(&pushed, &Topology::build(&pushed), false, None);
+    assert!(c.self_intersections > 0 && c.first_self_intersection_mm.is_some());
+    assert!(c.failures().iter().any(|f| f.contains("intersect")));
+    // Open ends: refused unless allowed.
+    let open = aneurysm(BorderEnds::Open, 0.0, 0.0);
+    let t = Topology::build(&open);
+    assert!(check_surface(&open, &t, false, None).failures()[0].contains("not watertight"));
+    assert!(check_surface(&open, &t, true, None).failures().is_empty());
+}

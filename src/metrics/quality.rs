@@ -129,3 +129,179 @@ mod tests {
         assert_eq!(s.histogram[HISTOGRAM_BINS - 1], 1);
     }
 }
+
+/// Upper bounds of the aspect-ratio bins of [`TriangleQuality`] (the last bin is open).
+pub const ASPECT_BINS: [f64; 5] = [1.5, 2.0, 3.0, 5.0, 10.0];
+
+/// Shape of a mesh's triangles, as meshers' quality reports give it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TriangleQuality {
+    /// Smallest interior angle over all triangles (degrees).
+    pub min_angle_deg: f64,
+    /// 1st percentile of the triangles' smallest angles (degrees).
+    pub p1_angle_deg: f64,
+    /// Triangles per aspect-ratio bin (longest edge x perimeter / (4 sqrt 3 x area); 1 for an
+    /// equilateral triangle): below 1.5, 2, 3, 5, 10, and 10 or more (degenerate ones there).
+    pub aspect_histogram: [usize; 6],
+    /// Largest aspect ratio (infinite for a degenerate triangle).
+    pub max_aspect: f64,
+}
+
+/// Angles and aspect ratios of every triangle.
+pub fn triangle_quality(mesh: &Mesh) -> TriangleQuality {
+    let p = mesh.positions();
+    let shapes: Vec<(f64, f64)> = mesh
+        .triangles()
+        .par_iter()
+        .map(|t| {
+            let q = t.map(|v| p[v as usize].map(f64::from));
+            let edge = |i: usize| {
+                let (a, b) = (q[i], q[(i + 1) % 3]);
+                ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+            };
+            let l = [edge(0), edge(1), edge(2)];
+            let u = [q[1][0] - q[0][0], q[1][1] - q[0][1], q[1][2] - q[0][2]];
+            let v = [q[2][0] - q[0][0], q[2][1] - q[0][1], q[2][2] - q[0][2]];
+            let cr = [
+                u[1] * v[2] - u[2] * v[1],
+                u[2] * v[0] - u[0] * v[2],
+                u[0] * v[1] - u[1] * v[0],
+            ];
+            let twice_area = (cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2]).sqrt();
+            let longest = l[0].max(l[1]).max(l[2]);
+            let aspect = if twice_area > 0.0 {
+                longest * (l[0] + l[1] + l[2]) / (2.0 * 3f64.sqrt() * twice_area)
+            } else {
+                f64::INFINITY
+            };
+            // Smallest angle: opposite the shortest edge, by the law of cosines' robust form.
+            let angle = if twice_area > 0.0 {
+                (0..3)
+                    .map(|k| {
+                        let (a, b, c) = (q[k], q[(k + 1) % 3], q[(k + 2) % 3]);
+                        let s = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+                        let w = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+                        let d = s[0] * w[0] + s[1] * w[1] + s[2] * w[2];
+                        twice_area.atan2(d).to_degrees()
+                    })
+                    .fold(180.0, f64::min)
+            } else {
+                0.0
+            };
+            (angle, aspect)
+        })
+        .collect();
+    let mut angles: Vec<f64> = shapes.iter().map(|s| s.0).collect();
+    angles.sort_by(|a, b| a.total_cmp(b));
+    let mut aspect_histogram = [0usize; 6];
+    let mut max_aspect = 0.0f64;
+    for &(_, a) in &shapes {
+        let bin = ASPECT_BINS.iter().position(|&b| a < b).unwrap_or(5);
+        aspect_histogram[bin] += 1;
+        max_aspect = max_aspect.max(a);
+    }
+    TriangleQuality {
+        min_angle_deg: angles.first().copied().unwrap_or(0.0),
+        p1_angle_deg: angles.get(angles.len() / 100).copied().unwrap_or(0.0),
+        aspect_histogram,
+        max_aspect,
+    }
+}
+
+/// Edge lengths against a target, as a remesher's result is judged.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct EdgeLengthStats {
+    pub edges: usize,
+    pub min_mm: f64,
+    pub mean_mm: f64,
+    pub max_mm: f64,
+    /// Mean of length / target.
+    pub mean_ratio: f64,
+    /// Share of edges within 20 % of their target (0..1).
+    pub within_20_percent: f64,
+}
+
+/// Length of every edge (`edges` as vertex pairs) against the mean of its two vertices'
+/// targets (mm).
+pub fn edge_length_stats(mesh: &Mesh, edges: &[[u32; 2]], target_mm: &[f32]) -> EdgeLengthStats {
+    let p = mesh.positions();
+    let measured: Vec<(f64, f64)> = edges
+        .par_iter()
+        .map(|&[a, b]| {
+            let (x, y) = (p[a as usize], p[b as usize]);
+            let len = (0..3)
+                .map(|k| (x[k] as f64 - y[k] as f64).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            let target = 0.5
+                * (target_mm.get(a as usize).copied().unwrap_or(f32::NAN)
+                    + target_mm.get(b as usize).copied().unwrap_or(f32::NAN))
+                    as f64;
+            (len, len / target)
+        })
+        .collect();
+    let n = measured.len();
+    if n == 0 {
+        return EdgeLengthStats {
+            edges: 0,
+            min_mm: 0.0,
+            mean_mm: 0.0,
+            max_mm: 0.0,
+            mean_ratio: 0.0,
+            within_20_percent: 0.0,
+        };
+    }
+    EdgeLengthStats {
+        edges: n,
+        min_mm: measured.iter().map(|m| m.0).fold(f64::INFINITY, f64::min),
+        mean_mm: deterministic_sum(n, |i| measured[i].0) / n as f64,
+        max_mm: measured.iter().map(|m| m.0).fold(0.0, f64::max),
+        mean_ratio: deterministic_sum(n, |i| measured[i].1) / n as f64,
+        within_20_percent: measured.iter().filter(|m| (m.1 - 1.0).abs() <= 0.2).count() as f64
+            / n as f64,
+    }
+}
+
+#[cfg(test)]
+mod shape_tests {
+    use super::*;
+
+    #[test]
+    fn angles_aspect_ratios_and_edge_lengths_by_hand() {
+        let h = 3f32.sqrt() / 2.0;
+        // An equilateral triangle and a right isosceles one.
+        let mesh = Mesh::new(
+            vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.5, h, 0.0],
+                [0.0, 0.0, 5.0],
+                [1.0, 0.0, 5.0],
+                [0.0, 1.0, 5.0],
+            ],
+            vec![[0, 1, 2], [3, 4, 5]],
+        )
+        .unwrap();
+        let q = triangle_quality(&mesh);
+        assert!((q.min_angle_deg - 45.0).abs() < 1e-4, "{q:?}");
+        // Right isosceles: sqrt 2 x (2 + sqrt 2) / (2 sqrt 3) = (1 + sqrt 2) / sqrt 3.
+        let right = (1.0 + 2f64.sqrt()) / 3f64.sqrt();
+        assert!((q.max_aspect - right).abs() < 1e-6, "{q:?}");
+        assert_eq!(q.aspect_histogram, [2, 0, 0, 0, 0, 0]);
+        // Edges 0-1 (1 mm) against 1 mm, 3-5 (1 mm) against 0.5 mm.
+        let targets = [1.0, 1.0, 1.0, 0.5, 0.5, 0.5];
+        let e = edge_length_stats(&mesh, &[[0, 1], [3, 5]], &targets);
+        assert_eq!((e.edges, e.min_mm, e.max_mm), (2, 1.0, 1.0));
+        assert!((e.mean_ratio - 1.5).abs() < 1e-12);
+        assert_eq!(e.within_20_percent, 0.5);
+        // A degenerate triangle: angle 0, infinite aspect, last bin.
+        let flat = Mesh::new(
+            vec![[0.0; 3], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]],
+            vec![[0, 1, 2]],
+        )
+        .unwrap();
+        let q = triangle_quality(&flat);
+        assert_eq!((q.min_angle_deg, q.aspect_histogram[5]), (0.0, 1));
+        assert!(q.max_aspect.is_infinite());
+    }
+}

@@ -1,6 +1,9 @@
 //! Exact point-to-surface distance: the closest point on a triangle, and a uniform grid over a
 //! mesh's triangles that answers nearest-triangle queries by searching rings of cells outward
-//! until no unvisited cell can hold anything closer.
+//! until no unvisited cell can hold anything closer; exact triangle-triangle intersection
+//! ([`intersect`]).
+
+pub mod intersect;
 
 use crate::mesh::Mesh;
 use rayon::prelude::*;
@@ -238,6 +241,11 @@ impl TriangleGrid {
     /// Number of indexed triangles.
     pub fn n_triangles(&self) -> usize {
         self.triangles.len()
+    }
+
+    /// Corners of indexed triangle `f` (mm), in the order of the mesh it was built from.
+    pub fn triangle(&self, f: u32) -> [[f32; 3]; 3] {
+        self.triangles[f as usize]
     }
 
     /// The nearest triangle to `p` and its distance; `None` if there are no triangles.

@@ -1,0 +1,120 @@
+//! The checks a surface passes before it goes to a flow solver's mesher, all exact where a
+//! yes/no answer is given: a closed (or, with open ends kept, only open at its patches)
+//! 2-manifold, consistently oriented with normals out of the fluid, no self-intersection
+//! (exact triangle-triangle tests), no triangle with collinear corners; and the quality
+//! figures meshers report (angles, aspect ratios, edge lengths against the target).
+
+use crate::mesh::geometry::signed_volume;
+use crate::mesh::{Mesh, Topology};
+use crate::metrics::quality::{
+    edge_length_stats, triangle_quality, EdgeLengthStats, TriangleQuality,
+};
+use crate::spatial::intersect::{exactly_degenerate_triangles, self_intersections};
+use serde::Serialize;
+
+/// What the checks found.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SurfaceChecks {
+    /// Edges with one face (allowed only where open ends are kept).
+    pub border_edges: usize,
+    pub open_ends_allowed: bool,
+    pub non_manifold_edges: usize,
+    pub non_manifold_vertices: usize,
+    /// Edges both faces run the same way (inconsistent orientation).
+    pub inconsistent_edges: usize,
+    pub components: usize,
+    /// Enclosed volume with the faces' orientation (mm³); negative when normals point in.
+    pub signed_volume_mm3: f64,
+    /// Pairs of faces that cross or touch beyond shared corners and edges.
+    pub self_intersections: usize,
+    /// Where the first one is (the centre of its first face, mm).
+    pub first_self_intersection_mm: Option<[f32; 3]>,
+    /// Faces whose corners are exactly collinear (or repeat a vertex).
+    pub degenerate_triangles: usize,
+    pub quality: TriangleQuality,
+    /// Edge lengths against the remeshing target, when there was one.
+    pub edges: Option<EdgeLengthStats>,
+}
+
+impl SurfaceChecks {
+    /// Why the surface must not be handed over; empty when it passes.
+    pub fn failures(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        if self.border_edges > 0 && !self.open_ends_allowed {
+            out.push(format!(
+                "not watertight: {} border edges (close the open ends)",
+                self.border_edges
+            ));
+        }
+        if self.non_manifold_edges > 0 || self.non_manifold_vertices > 0 {
+            out.push(format!(
+                "not a 2-manifold: {} edges with more than two faces, {} pinched vertices",
+                self.non_manifold_edges, self.non_manifold_vertices
+            ));
+        }
+        if self.inconsistent_edges > 0 {
+            out.push(format!(
+                "inconsistently oriented: {} edges",
+                self.inconsistent_edges
+            ));
+        }
+        if self.components != 1 {
+            out.push(format!("{} separate components", self.components));
+        }
+        if self.signed_volume_mm3 <= 0.0 && self.border_edges == 0 {
+            out.push(format!(
+                "normals point into the fluid (enclosed volume {:.3} mm³)",
+                self.signed_volume_mm3
+            ));
+        }
+        if self.self_intersections > 0 {
+            let at = self
+                .first_self_intersection_mm
+                .map(|p| format!(" (first near {:.2}, {:.2}, {:.2} mm)", p[0], p[1], p[2]))
+                .unwrap_or_default();
+            out.push(format!(
+                "{} pairs of faces intersect{at}",
+                self.self_intersections
+            ));
+        }
+        if self.degenerate_triangles > 0 {
+            out.push(format!(
+                "{} degenerate triangles (collinear corners)",
+                self.degenerate_triangles
+            ));
+        }
+        out
+    }
+}
+
+/// Runs every check on `mesh`; `target_mm` (per vertex) adds the edge-length figures.
+pub fn check_surface(
+    mesh: &Mesh,
+    topology: &Topology,
+    open_ends_allowed: bool,
+    target_mm: Option<&[f32]>,
+) -> SurfaceChecks {
+    let border_edges = topology.edge_n_faces().iter().filter(|&&n| n == 1).count();
+    let intersections = self_intersections(mesh);
+    let first_self_intersection_mm = intersections.first().map(|&[f, _]| {
+        let p = mesh.positions();
+        let t = mesh.triangles()[f as usize];
+        std::array::from_fn(|k| {
+            (p[t[0] as usize][k] + p[t[1] as usize][k] + p[t[2] as usize][k]) / 3.0
+        })
+    });
+    SurfaceChecks {
+        border_edges,
+        open_ends_allowed,
+        non_manifold_edges: topology.non_manifold_edges().len(),
+        non_manifold_vertices: topology.non_manifold_vertices().len(),
+        inconsistent_edges: topology.inconsistent_edges().len(),
+        components: topology.n_components(),
+        signed_volume_mm3: signed_volume(mesh),
+        self_intersections: intersections.len(),
+        first_self_intersection_mm,
+        degenerate_triangles: exactly_degenerate_triangles(mesh).len(),
+        quality: triangle_quality(mesh),
+        edges: target_mm.map(|t| edge_length_stats(mesh, topology.edges(), t)),
+    }
+}

@@ -1,0 +1,317 @@
+//! What the remeshed surface is projected back onto: the input surface, patch by patch (a
+//! vertex inside a patch projects onto the input faces of that patch, so caps stay in their
+//! plane), and the input's feature lines (cap rims, open borders) for the vertices on them.
+//! Each input vertex carries a target edge length (mm), interpolated at the projection.
+
+use crate::mesh::{Mesh, Topology};
+use crate::spatial::{closest_point_on_triangle, TriangleGrid};
+use rayon::prelude::*;
+
+/// A feature line of the input (a cap rim, an open border, or a piece of one between two
+/// corners) as a polyline parametrised by arc length, with the target edge length at each
+/// point. Rim vertices of the remeshed surface live at arc positions on it, so a split puts
+/// the new vertex between its neighbours on the line, never onto another part of it.
+#[derive(Debug, Clone, Default)]
+pub(super) struct Line {
+    /// Points in order; a closed loop repeats its first point at the end.
+    points: Vec<[f64; 3]>,
+    sizes: Vec<f64>,
+    /// Arc length at each point (mm).
+    cum: Vec<f64>,
+    pub closed: bool,
+}
+
+impl Line {
+    fn new(points: Vec<[f64; 3]>, sizes: Vec<f64>, closed: bool) -> Line {
+        let mut cum = Vec::with_capacity(points.len());
+        let mut total = 0.0;
+        for (i, p) in points.iter().enumerate() {
+            if i > 0 {
+                let q = points[i - 1];
+                total +=
+                    ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt();
+            }
+            cum.push(total);
+        }
+        Line {
+            points,
+            sizes,
+            cum,
+            closed,
+        }
+    }
+
+    /// Total length (mm).
+    pub fn length(&self) -> f64 {
+        self.cum.last().copied().unwrap_or(0.0)
+    }
+
+    /// Point and target edge length at arc position s (wrapped on a loop, clamped otherwise).
+    pub fn eval(&self, s: f64) -> ([f64; 3], f64) {
+        let len = self.length();
+        if self.points.len() < 2 || len <= 0.0 {
+            return (
+                self.points.first().copied().unwrap_or([0.0; 3]),
+                self.sizes.first().copied().unwrap_or(1.0),
+            );
+        }
+        let s = if self.closed {
+            s.rem_euclid(len)
+        } else {
+            s.clamp(0.0, len)
+        };
+        let i = self
+            .cum
+            .partition_point(|&c| c <= s)
+            .saturating_sub(1)
+            .min(self.points.len() - 2);
+        let seg = self.cum[i + 1] - self.cum[i];
+        let t = if seg > 0.0 {
+            ((s - self.cum[i]) / seg).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let (a, b) = (self.points[i], self.points[i + 1]);
+        (
+            std::array::from_fn(|k| a[k] + t * (b[k] - a[k])),
+            self.sizes[i] + t * (self.sizes[i + 1] - self.sizes[i]),
+        )
+    }
+
+    /// The arc position halfway between s0 and s1 (the shorter way round a loop).
+    pub fn between(&self, s0: f64, s1: f64) -> f64 {
+        if self.closed {
+            let len = self.length();
+            if len <= 0.0 {
+                return s0;
+            }
+            let mut d = (s1 - s0).rem_euclid(len);
+            if d > len / 2.0 {
+                d -= len;
+            }
+            (s0 + d / 2.0).rem_euclid(len)
+        } else {
+            0.5 * (s0 + s1)
+        }
+    }
+
+    /// Arc position of the point of the line nearest to q.
+    pub fn param_near(&self, q: [f64; 3]) -> f64 {
+        let mut best = (f64::INFINITY, 0.0);
+        for i in 0..self.points.len().saturating_sub(1) {
+            let (a, b) = (self.points[i], self.points[i + 1]);
+            let d: [f64; 3] = std::array::from_fn(|k| b[k] - a[k]);
+            let len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+            let t = if len2 > 0.0 {
+                (((q[0] - a[0]) * d[0] + (q[1] - a[1]) * d[1] + (q[2] - a[2]) * d[2]) / len2)
+                    .clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let x: [f64; 3] = std::array::from_fn(|k| a[k] + t * d[k]);
+            let dist2: f64 = (0..3).map(|k| (x[k] - q[k]).powi(2)).sum();
+            if dist2 < best.0 {
+                best = (dist2, self.cum[i] + t * (self.cum[i + 1] - self.cum[i]));
+            }
+        }
+        best.1
+    }
+}
+
+/// One patch of the input: its faces indexed for nearest-point queries, and the target edge
+/// length at the corners of each indexed face.
+#[derive(Debug, Clone)]
+struct PatchSurface {
+    id: u32,
+    grid: TriangleGrid,
+    corner_size: Vec<[f64; 3]>,
+}
+
+#[derive(Debug, Clone)]
+pub(super) struct Reference {
+    patches: Vec<PatchSurface>,
+    pub lines: Vec<Line>,
+    /// For each input vertex inside a feature line: the line and the arc position there.
+    pub on_line: Vec<Option<(u32, f64)>>,
+}
+
+/// Border marker in a feature line's key (the open side of a boundary edge).
+pub(super) const OPEN: u32 = u32::MAX;
+
+/// The key of the line an edge between faces of ids `i` and `j` belongs to.
+#[inline]
+pub(super) fn line_key(i: u32, j: u32) -> (u32, u32) {
+    (i.min(j), i.max(j))
+}
+
+impl Reference {
+    /// `size` is the target edge length at each input vertex (mm).
+    pub fn build(mesh: &Mesh, topology: &Topology, face_ids: &[u32], size: &[f64]) -> Reference {
+        let tris = mesh.triangles();
+        let mut ids: Vec<u32> = face_ids.to_vec();
+        ids.sort_unstable();
+        ids.dedup();
+        let patches = ids
+            .par_iter()
+            .map(|&id| {
+                let faces: Vec<u32> = (0..tris.len() as u32)
+                    .filter(|&f| face_ids[f as usize] == id)
+                    .collect();
+                let sub = mesh.select_faces(&faces);
+                let corner_size = faces
+                    .iter()
+                    .map(|&f| tris[f as usize].map(|v| size[v as usize]))
+                    .collect();
+                PatchSurface {
+                    id,
+                    grid: TriangleGrid::build(&sub),
+                    corner_size,
+                }
+            })
+            .collect();
+        let (lines, on_line) = feature_lines(mesh, topology, face_ids, size);
+        Reference {
+            patches,
+            lines,
+            on_line,
+        }
+    }
+
+    /// The nearest point of patch `id` to `q`, and the target edge length there; `None` if the
+    /// input has no such patch.
+    pub fn project_to_patch(&self, id: u32, q: [f64; 3]) -> Option<([f64; 3], f64)> {
+        let patch = self.patches.iter().find(|s| s.id == id)?;
+        let near = patch.grid.nearest(q.map(|x| x as f32))?;
+        let t = patch.grid.triangle(near.triangle).map(|c| c.map(f64::from));
+        let x = closest_point_on_triangle(q, t[0], t[1], t[2]);
+        let w = barycentric(x, t);
+        let s = patch.corner_size[near.triangle as usize];
+        Some((x, w[0] * s[0] + w[1] * s[1] + w[2] * s[2]))
+    }
+}
+
+/// The feature lines of the input: chains of edges whose two faces differ in id (or that have
+/// one face), split where more than two such edges meet or where the pair of ids changes.
+fn feature_lines(
+    mesh: &Mesh,
+    topology: &Topology,
+    face_ids: &[u32],
+    size: &[f64],
+) -> (Vec<Line>, Vec<Option<(u32, f64)>>) {
+    let tris = mesh.triangles();
+    let n = mesh.n_vertices();
+    // Feature edges with their key, and per vertex the feature edges at it.
+    let mut edges: Vec<([u32; 2], (u32, u32))> = Vec::new();
+    let mut at: Vec<Vec<u32>> = vec![Vec::new(); n];
+    for &[a, b] in topology.edges() {
+        let faces: Vec<u32> = topology
+            .vertex_faces(a as usize)
+            .iter()
+            .copied()
+            .filter(|&f| tris[f as usize].contains(&b))
+            .collect();
+        let key = match faces.as_slice() {
+            [f] => line_key(face_ids[*f as usize], OPEN),
+            [f, g] if face_ids[*f as usize] != face_ids[*g as usize] => {
+                line_key(face_ids[*f as usize], face_ids[*g as usize])
+            }
+            _ => continue,
+        };
+        let e = edges.len() as u32;
+        edges.push(([a, b], key));
+        at[a as usize].push(e);
+        at[b as usize].push(e);
+    }
+    // A vertex continues a line when exactly two feature edges of one key meet there.
+    let inner = |v: u32| {
+        let es = &at[v as usize];
+        es.len() == 2 && edges[es[0] as usize].1 == edges[es[1] as usize].1
+    };
+    let p = mesh.positions();
+    let pos = |v: u32| p[v as usize].map(f64::from);
+    let mut used = vec![false; edges.len()];
+    let mut lines = Vec::new();
+    let mut on_line = vec![None; n];
+    let walk = |start: u32, first: u32, used: &mut Vec<bool>| -> (Vec<u32>, bool) {
+        let mut chain = vec![start];
+        let (mut v, mut e) = (start, first);
+        loop {
+            used[e as usize] = true;
+            let [a, b] = edges[e as usize].0;
+            let w = if a == v { b } else { a };
+            if w == start {
+                chain.push(w);
+                return (chain, true);
+            }
+            chain.push(w);
+            if !inner(w) {
+                return (chain, false);
+            }
+            match at[w as usize].iter().find(|&&x| !used[x as usize]) {
+                Some(&x) => {
+                    v = w;
+                    e = x;
+                }
+                None => return (chain, false),
+            }
+        }
+    };
+    let mut chains = Vec::new();
+    // Open chains from corners first, then the closed loops left.
+    for v in 0..n as u32 {
+        if inner(v) {
+            continue;
+        }
+        for &e in &at[v as usize] {
+            if !used[e as usize] {
+                chains.push(walk(v, e, &mut used));
+            }
+        }
+    }
+    for e in 0..edges.len() {
+        if !used[e] {
+            let start = edges[e].0[0];
+            chains.push(walk(start, e as u32, &mut used));
+        }
+    }
+    for (chain, closed) in chains {
+        let line = Line::new(
+            chain.iter().map(|&v| pos(v)).collect(),
+            chain.iter().map(|&v| size[v as usize]).collect(),
+            closed,
+        );
+        let l = lines.len() as u32;
+        for (i, &v) in chain.iter().enumerate() {
+            if inner(v) && on_line[v as usize].is_none() {
+                on_line[v as usize] = Some((l, line.cum[i]));
+            }
+        }
+        lines.push(line);
+    }
+    (lines, on_line)
+}
+
+/// Barycentric coordinates of x (on triangle t) by sub-areas; equal thirds for a sliver.
+fn barycentric(x: [f64; 3], t: [[f64; 3]; 3]) -> [f64; 3] {
+    let area = |a: [f64; 3], b: [f64; 3], c: [f64; 3]| {
+        let u: [f64; 3] = std::array::from_fn(|k| b[k] - a[k]);
+        let v: [f64; 3] = std::array::from_fn(|k| c[k] - a[k]);
+        let n = [
+            u[1] * v[2] - u[2] * v[1],
+            u[2] * v[0] - u[0] * v[2],
+            u[0] * v[1] - u[1] * v[0],
+        ];
+        (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt()
+    };
+    let w = [
+        area(x, t[1], t[2]),
+        area(t[0], x, t[2]),
+        area(t[0], t[1], x),
+    ];
+    let sum = w[0] + w[1] + w[2];
+    if sum > 0.0 && sum.is_finite() {
+        w.map(|x| x / sum)
+    } else {
+        [1.0 / 3.0; 3]
+    }
+}

@@ -1,0 +1,144 @@
+//! Local vessel radius at every vertex, for edge lengths relative to the radius: the radius of
+//! the largest ball that touches the surface at the vertex from inside and holds no other part
+//! of the surface (the shrinking-ball construction of Ma, Bae and Choi 2012), then averaged over
+//! one-rings so single noisy vertices do not set the size.
+
+use crate::mesh::geometry::vertex_normals;
+use crate::mesh::{Mesh, Topology};
+use crate::spatial::{closest_point_on_triangle, TriangleGrid};
+use rayon::prelude::*;
+
+/// Radius (mm) of the largest inside ball touching each vertex. On a tube this is the tube's
+/// radius; at an aneurysm dome the dome's. `max_mm` bounds it where the ball escapes (open ends).
+pub fn local_radius(mesh: &Mesh, topology: &Topology, max_mm: f64) -> Vec<f64> {
+    let grid = TriangleGrid::build(mesh);
+    let normals = vertex_normals(mesh, topology);
+    let p = mesh.positions();
+    let volume_sign = if crate::mesh::geometry::signed_volume(mesh) < 0.0 {
+        -1.0
+    } else {
+        1.0
+    };
+    let raw: Vec<f64> = (0..mesh.n_vertices())
+        .into_par_iter()
+        .map(|v| {
+            let x = p[v].map(f64::from);
+            let n = normals[v].map(|c| -volume_sign * c as f64); // inward
+            if n == [0.0; 3] {
+                return max_mm;
+            }
+            let mut r = max_mm;
+            for _ in 0..40 {
+                let c: [f64; 3] = std::array::from_fn(|k| x[k] + r * n[k]);
+                let Some(near) = grid.nearest(c.map(|q| q as f32)) else {
+                    return max_mm;
+                };
+                let t = grid.triangle(near.triangle).map(|q| q.map(f64::from));
+                let q = closest_point_on_triangle(c, t[0], t[1], t[2]);
+                let dist2: f64 = (0..3).map(|k| (c[k] - q[k]).powi(2)).sum();
+                // Done when nothing but the touching point's neighbourhood is inside (2 %
+                // slack for the chords of a polygonal surface).
+                if dist2.sqrt() >= r * 0.98 {
+                    break;
+                }
+                let xq: [f64; 3] = std::array::from_fn(|k| q[k] - x[k]);
+                let along = xq[0] * n[0] + xq[1] * n[1] + xq[2] * n[2];
+                let len2 = xq[0] * xq[0] + xq[1] * xq[1] + xq[2] * xq[2];
+                if along <= 0.0 || len2 <= 0.0 {
+                    break;
+                }
+                let shrunk = len2 / (2.0 * along);
+                if shrunk >= r {
+                    break;
+                }
+                r = shrunk;
+            }
+            r
+        })
+        .collect();
+    // Two rounds of one-ring averaging.
+    let mut radius = raw;
+    for _ in 0..2 {
+        radius = (0..mesh.n_vertices())
+            .into_par_iter()
+            .map(|v| {
+                let ring = topology.neighbors(v);
+                let sum: f64 = ring.iter().map(|&u| radius[u as usize]).sum();
+                (radius[v] + sum) / (1 + ring.len()) as f64
+            })
+            .collect();
+    }
+    radius
+}
+
+/// Largest edge length (mm) at each vertex for which a chord stays within about a tenth of its
+/// own length from the surface: `0.8 / curvature`, where the curvature is the largest normal
+/// turn per mm along the vertex's edges inside one patch. Infinite where the surface is flat.
+/// Edges between patches are creases by design and do not count.
+pub fn curvature_size(mesh: &Mesh, topology: &Topology, face_ids: &[u32]) -> Vec<f64> {
+    let p = mesh.positions();
+    let tris = mesh.triangles();
+    let at = |v: u32| p[v as usize].map(f64::from);
+    let face_normal = |f: u32| {
+        let [a, b, c] = tris[f as usize].map(at);
+        let u: [f64; 3] = std::array::from_fn(|k| b[k] - a[k]);
+        let w: [f64; 3] = std::array::from_fn(|k| c[k] - a[k]);
+        [
+            u[1] * w[2] - u[2] * w[1],
+            u[2] * w[0] - u[0] * w[2],
+            u[0] * w[1] - u[1] * w[0],
+        ]
+    };
+    // Unit normal of vertex v over its faces of patch `id`.
+    let normal_in = |v: u32, id: u32| {
+        let mut n = [0.0f64; 3];
+        for &f in topology.vertex_faces(v as usize) {
+            if face_ids[f as usize] == id {
+                let m = face_normal(f);
+                for k in 0..3 {
+                    n[k] += m[k];
+                }
+            }
+        }
+        let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        if l > 0.0 {
+            n.map(|x| x / l)
+        } else {
+            n
+        }
+    };
+    let dist = |a: [f64; 3], b: [f64; 3]| {
+        ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+    };
+    (0..mesh.n_vertices() as u32)
+        .into_par_iter()
+        .map(|v| {
+            let x = at(v);
+            let mut curvature = 0.0f64;
+            for &u in topology.neighbors(v as usize) {
+                let ids: Vec<u32> = topology
+                    .vertex_faces(v as usize)
+                    .iter()
+                    .filter(|&&f| tris[f as usize].contains(&u))
+                    .map(|&f| face_ids[f as usize])
+                    .collect();
+                let len = dist(x, at(u));
+                if len <= 0.0 {
+                    continue;
+                }
+                match ids.as_slice() {
+                    [i, j] if i == j => {
+                        let (a, b) = (normal_in(v, *i), normal_in(u, *i));
+                        curvature = curvature.max(dist(a, b) / len);
+                    }
+                    _ => {}
+                }
+            }
+            if curvature > 0.0 {
+                0.8 / curvature
+            } else {
+                f64::INFINITY
+            }
+        })
+        .collect()
+}

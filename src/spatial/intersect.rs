@@ -1,0 +1,626 @@
+//! Exact triangle-triangle intersection: closed triangles (touching counts), decided with
+//! Shewchuk's adaptive exact predicates (`robust`), so a result never depends on rounding.
+//! A uniform grid over triangle bounding boxes finds candidate pairs; pairs of one mesh that
+//! share vertices intersect only where they meet beyond what they share (a fold, a crossing).
+//!
+//! Triangles whose three corners are exactly collinear are degenerate: they have no plane, are
+//! counted by [`exactly_degenerate_triangles`] and are left out of the pair tests.
+
+use crate::mesh::Mesh;
+use rayon::prelude::*;
+use robust::{orient2d, orient3d, Coord, Coord3D};
+
+type P = [f32; 3];
+
+#[inline]
+fn c3(p: P) -> Coord3D<f64> {
+    Coord3D {
+        x: p[0] as f64,
+        y: p[1] as f64,
+        z: p[2] as f64,
+    }
+}
+
+/// Sign of the orientation of d against the plane (a, b, c): exact, -1, 0 or 1.
+#[inline]
+fn orient(a: P, b: P, c: P, d: P) -> i8 {
+    let o = orient3d(c3(a), c3(b), c3(c), c3(d));
+    (o > 0.0) as i8 - (o < 0.0) as i8
+}
+
+/// A point projected onto the coordinate plane without axis `drop`.
+#[inline]
+fn flat(p: P, drop: usize) -> Coord<f64> {
+    let (i, j) = match drop {
+        0 => (1, 2),
+        1 => (2, 0),
+        _ => (0, 1),
+    };
+    Coord {
+        x: p[i] as f64,
+        y: p[j] as f64,
+    }
+}
+
+#[inline]
+fn orient_flat(a: P, b: P, c: P, drop: usize) -> i8 {
+    let o = orient2d(flat(a, drop), flat(b, drop), flat(c, drop));
+    (o > 0.0) as i8 - (o < 0.0) as i8
+}
+
+/// The axis to drop so that the triangle stays non-degenerate in projection (exact), or `None`
+/// for a triangle whose corners are collinear.
+fn projection_axis(t: [P; 3]) -> Option<usize> {
+    // Try the axis of the largest normal component first; any axis with a non-zero exact
+    // projected area will do.
+    let e1: [f64; 3] = std::array::from_fn(|k| t[1][k] as f64 - t[0][k] as f64);
+    let e2: [f64; 3] = std::array::from_fn(|k| t[2][k] as f64 - t[0][k] as f64);
+    let n = [
+        (e1[1] * e2[2] - e1[2] * e2[1]).abs(),
+        (e1[2] * e2[0] - e1[0] * e2[2]).abs(),
+        (e1[0] * e2[1] - e1[1] * e2[0]).abs(),
+    ];
+    let mut order = [0usize, 1, 2];
+    order.sort_by(|&a, &b| n[b].total_cmp(&n[a]));
+    order
+        .into_iter()
+        .find(|&axis| orient_flat(t[0], t[1], t[2], axis) != 0)
+}
+
+/// True when the triangle's corners are exactly collinear (zero area, no plane).
+pub fn is_exactly_degenerate(t: [P; 3]) -> bool {
+    projection_axis(t).is_none()
+}
+
+/// Whether p lies on the closed segment ab, given that the three are collinear.
+#[inline]
+fn within(a: P, b: P, p: P) -> bool {
+    (0..3).all(|k| p[k] >= a[k].min(b[k]) && p[k] <= a[k].max(b[k]))
+}
+
+/// Closed segments pq and ab, coplanar, in the projection without axis `drop`.
+fn segments_meet_flat(p: P, q: P, a: P, b: P, drop: usize) -> bool {
+    let d1 = orient_flat(a, b, p, drop);
+    let d2 = orient_flat(a, b, q, drop);
+    let d3 = orient_flat(p, q, a, drop);
+    let d4 = orient_flat(p, q, b, drop);
+    if d1 * d2 < 0 && d3 * d4 < 0 {
+        return true;
+    }
+    (d1 == 0 && within(a, b, p))
+        || (d2 == 0 && within(a, b, q))
+        || (d3 == 0 && within(p, q, a))
+        || (d4 == 0 && within(p, q, b))
+}
+
+/// Whether p lies in the closed triangle t, all coplanar, projected without axis `drop`.
+#[inline]
+fn inside_flat(p: P, t: [P; 3], drop: usize) -> bool {
+    let s = [
+        orient_flat(t[0], t[1], p, drop),
+        orient_flat(t[1], t[2], p, drop),
+        orient_flat(t[2], t[0], p, drop),
+    ];
+    s.iter().all(|&x| x >= 0) || s.iter().all(|&x| x <= 0)
+}
+
+/// Whether the closed segment pq meets the closed, non-degenerate triangle t.
+pub fn segment_meets_triangle(p: P, q: P, t: [P; 3]) -> bool {
+    let [a, b, c] = t;
+    let o1 = orient(a, b, c, p);
+    let o2 = orient(a, b, c, q);
+    if o1 * o2 > 0 {
+        return false;
+    }
+    if o1 == 0 && o2 == 0 {
+        let Some(drop) = projection_axis(t) else {
+            return false;
+        };
+        return inside_flat(p, t, drop)
+            || inside_flat(q, t, drop)
+            || segments_meet_flat(p, q, a, b, drop)
+            || segments_meet_flat(p, q, b, c, drop)
+            || segments_meet_flat(p, q, c, a, drop);
+    }
+    // pq crosses or touches the plane at one point: it lies in t when the line pq passes the
+    // three edges on the same side.
+    let s1 = orient(p, q, a, b);
+    let s2 = orient(p, q, b, c);
+    let s3 = orient(p, q, c, a);
+    (s1 >= 0 && s2 >= 0 && s3 >= 0) || (s1 <= 0 && s2 <= 0 && s3 <= 0)
+}
+
+/// Whether two closed, non-degenerate triangles share at least one point. Two triangles meet
+/// exactly when an edge of one meets the other (the intersection's ends lie on edges).
+pub fn triangles_intersect(t: [P; 3], u: [P; 3]) -> bool {
+    // Separating planes first: all of one triangle strictly on one side of the other's plane.
+    let side_u = [0, 1, 2].map(|k| orient(t[0], t[1], t[2], u[k]));
+    if side_u.iter().all(|&s| s > 0) || side_u.iter().all(|&s| s < 0) {
+        return false;
+    }
+    let side_t = [0, 1, 2].map(|k| orient(u[0], u[1], u[2], t[k]));
+    if side_t.iter().all(|&s| s > 0) || side_t.iter().all(|&s| s < 0) {
+        return false;
+    }
+    (0..3).any(|k| segment_meets_triangle(t[k], t[(k + 1) % 3], u))
+        || (0..3).any(|k| segment_meets_triangle(u[k], u[(k + 1) % 3], t))
+}
+
+/// Whether two triangles of one mesh meet anywhere beyond the vertices they share (by index).
+/// `ti`, `tu` are vertex indices, `t`, `u` the corresponding positions; both non-degenerate.
+fn faces_intersect(ti: [u32; 3], t: [P; 3], ui: [u32; 3], u: [P; 3]) -> bool {
+    let shared_in_t = [0, 1, 2].map(|k| ui.contains(&ti[k]));
+    match shared_in_t.iter().filter(|&&s| s).count() {
+        0 => triangles_intersect(t, u),
+        1 => {
+            // Shared corner v: the faces meet elsewhere iff the edge opposite v in one meets
+            // the other face.
+            let k = shared_in_t.iter().position(|&s| s).unwrap_or(0);
+            let m = ui.iter().position(|&x| x == ti[k]).unwrap_or(0);
+            segment_meets_triangle(t[(k + 1) % 3], t[(k + 2) % 3], u)
+                || segment_meets_triangle(u[(m + 1) % 3], u[(m + 2) % 3], t)
+        }
+        2 => {
+            // Shared edge: they overlap iff coplanar with both opposite corners on one side.
+            let k = shared_in_t.iter().position(|&s| !s).unwrap_or(0);
+            let (e0, e1, a) = (t[(k + 1) % 3], t[(k + 2) % 3], t[k]);
+            let m = (0..3).find(|&m| !ti.contains(&ui[m])).unwrap_or(0);
+            let b = u[m];
+            if orient(e0, e1, a, b) != 0 {
+                return false;
+            }
+            let Some(drop) = projection_axis(t) else {
+                return false;
+            };
+            orient_flat(e0, e1, a, drop) * orient_flat(e0, e1, b, drop) > 0
+        }
+        // The same three corners: one face lies on the other.
+        _ => true,
+    }
+}
+
+/// Faces of `mesh` whose corners are exactly collinear (including repeated indices).
+pub fn exactly_degenerate_triangles(mesh: &Mesh) -> Vec<u32> {
+    let p = mesh.positions();
+    mesh.triangles()
+        .par_iter()
+        .enumerate()
+        .filter(|(_, t)| is_exactly_degenerate(t.map(|v| p[v as usize])))
+        .map(|(f, _)| f as u32)
+        .collect()
+}
+
+type Aabb = ([f32; 3], [f32; 3]);
+
+fn aabb(t: [P; 3]) -> Aabb {
+    let lo = std::array::from_fn(|k| t[0][k].min(t[1][k]).min(t[2][k]));
+    let hi = std::array::from_fn(|k| t[0][k].max(t[1][k]).max(t[2][k]));
+    (lo, hi)
+}
+
+#[inline]
+fn boxes_overlap(a: &Aabb, b: &Aabb) -> bool {
+    (0..3).all(|k| a.0[k] <= b.1[k] && b.0[k] <= a.1[k])
+}
+
+/// A uniform grid of cells listing the boxes that overlap them (CSR).
+struct BoxGrid {
+    origin: [f64; 3],
+    cell: f64,
+    dims: [usize; 3],
+    offsets: Vec<u32>,
+    items: Vec<u32>,
+}
+
+impl BoxGrid {
+    /// Cells about twice the mean box size, at most a few per box; `extra` widens the bounds
+    /// so boxes of another set can be located too.
+    fn build(boxes: &[Aabb], extra: &[Aabb]) -> BoxGrid {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        let mut size = 0.0f64;
+        for b in boxes.iter().chain(extra) {
+            for k in 0..3 {
+                lo[k] = lo[k].min(b.0[k] as f64);
+                hi[k] = hi[k].max(b.1[k] as f64);
+                size += (b.1[k] - b.0[k]) as f64;
+            }
+        }
+        if !lo[0].is_finite() {
+            lo = [0.0; 3];
+            hi = [0.0; 3];
+        }
+        let n = boxes.len().max(1);
+        let extent: [f64; 3] = std::array::from_fn(|k| hi[k] - lo[k]);
+        let max_extent = extent.iter().cloned().fold(0.0, f64::max).max(1e-9);
+        let mut cell = (2.0 * size / (3 * (boxes.len() + extra.len()).max(1)) as f64)
+            .max(max_extent * 1e-6)
+            .max(1e-9);
+        let budget = (4 * n + 64) as f64;
+        let count = |c: f64| {
+            extent
+                .iter()
+                .map(|e| (e / c).floor() + 1.0)
+                .product::<f64>()
+        };
+        while count(cell) > budget {
+            cell *= 1.25;
+        }
+        let dims: [usize; 3] = std::array::from_fn(|k| (extent[k] / cell).floor() as usize + 1);
+        let mut grid = BoxGrid {
+            origin: lo,
+            cell,
+            dims,
+            offsets: vec![0; dims[0] * dims[1] * dims[2] + 1],
+            items: Vec::new(),
+        };
+        for b in boxes {
+            for c in cells(dims, grid.cell_ranges(b)) {
+                grid.offsets[c + 1] += 1;
+            }
+        }
+        for c in 1..grid.offsets.len() {
+            grid.offsets[c] += grid.offsets[c - 1];
+        }
+        let mut cursor = grid.offsets[..grid.offsets.len() - 1].to_vec();
+        grid.items = vec![0; grid.offsets[grid.offsets.len() - 1] as usize];
+        for (i, b) in boxes.iter().enumerate() {
+            for c in cells(dims, grid.cell_ranges(b)) {
+                grid.items[cursor[c] as usize] = i as u32;
+                cursor[c] += 1;
+            }
+        }
+        grid
+    }
+
+    /// The cell index along axis k holding coordinate x (clamped to the grid).
+    #[inline]
+    fn cell_of(&self, x: f32, k: usize) -> usize {
+        (((x as f64 - self.origin[k]) / self.cell).floor().max(0.0) as usize).min(self.dims[k] - 1)
+    }
+
+    fn cell_ranges(&self, b: &Aabb) -> [std::ops::RangeInclusive<usize>; 3] {
+        std::array::from_fn(|k| self.cell_of(b.0[k], k)..=self.cell_of(b.1[k], k))
+    }
+
+    fn items(&self, c: usize) -> &[u32] {
+        &self.items[self.offsets[c] as usize..self.offsets[c + 1] as usize]
+    }
+
+    /// The one cell where a pair of overlapping boxes is tested: the cell of the overlap's
+    /// lowest corner, so each pair is tested once however many cells both cover.
+    #[inline]
+    fn owner_cell(&self, a: &Aabb, b: &Aabb) -> usize {
+        let k: [usize; 3] = std::array::from_fn(|k| self.cell_of(a.0[k].max(b.0[k]), k));
+        (k[2] * self.dims[1] + k[1]) * self.dims[0] + k[0]
+    }
+}
+
+/// Linear indices of the cells in the given ranges of a grid of `dims` cells.
+fn cells(dims: [usize; 3], r: [std::ops::RangeInclusive<usize>; 3]) -> impl Iterator<Item = usize> {
+    let [rx, ry, rz] = r;
+    rz.flat_map(move |z| {
+        let rx = rx.clone();
+        ry.clone()
+            .flat_map(move |y| rx.clone().map(move |x| (z * dims[1] + y) * dims[0] + x))
+    })
+}
+
+/// Pairs of faces `[f, g]` (f < g) of `mesh` that intersect beyond the vertices and edges
+/// they share: crossings, touching and folded-over neighbours. Sorted; exact; degenerate
+/// faces (see [`exactly_degenerate_triangles`]) are left out.
+pub fn self_intersections(mesh: &Mesh) -> Vec<[u32; 2]> {
+    let p = mesh.positions();
+    let tris = mesh.triangles();
+    let corners: Vec<[P; 3]> = tris.iter().map(|t| t.map(|v| p[v as usize])).collect();
+    let valid: Vec<bool> = corners
+        .par_iter()
+        .map(|&t| !is_exactly_degenerate(t))
+        .collect();
+    let boxes: Vec<Aabb> = corners.iter().map(|&t| aabb(t)).collect();
+    let grid = BoxGrid::build(&boxes, &[]);
+    let mut pairs: Vec<[u32; 2]> = (0..tris.len())
+        .into_par_iter()
+        .filter(|&f| valid[f])
+        .flat_map_iter(|f| {
+            let mut found = Vec::new();
+            for c in cells(grid.dims, grid.cell_ranges(&boxes[f])) {
+                for &g in grid.items(c) {
+                    let g = g as usize;
+                    if g <= f
+                        || !valid[g]
+                        || !boxes_overlap(&boxes[f], &boxes[g])
+                        || grid.owner_cell(&boxes[f], &boxes[g]) != c
+                    {
+                        continue;
+                    }
+                    if faces_intersect(tris[f], corners[f], tris[g], corners[g]) {
+                        found.push([f as u32, g as u32]);
+                    }
+                }
+            }
+            found
+        })
+        .collect();
+    pairs.sort_unstable();
+    pairs
+}
+
+/// Pairs of faces `[f of a, g of b]` where two meshes intersect (touching counts). Sorted;
+/// exact; degenerate faces are left out.
+pub fn mesh_intersections(a: &Mesh, b: &Mesh) -> Vec<[u32; 2]> {
+    let corners = |m: &Mesh| -> Vec<[P; 3]> {
+        let p = m.positions();
+        m.triangles()
+            .iter()
+            .map(|t| t.map(|v| p[v as usize]))
+            .collect()
+    };
+    let (ca, cb) = (corners(a), corners(b));
+    let boxes_a: Vec<Aabb> = ca.iter().map(|&t| aabb(t)).collect();
+    let boxes_b: Vec<Aabb> = cb.iter().map(|&t| aabb(t)).collect();
+    let valid_b: Vec<bool> = cb.par_iter().map(|&t| !is_exactly_degenerate(t)).collect();
+    let grid = BoxGrid::build(&boxes_b, &boxes_a);
+    let mut pairs: Vec<[u32; 2]> = (0..ca.len())
+        .into_par_iter()
+        .filter(|&f| !is_exactly_degenerate(ca[f]))
+        .flat_map_iter(|f| {
+            let mut found = Vec::new();
+            for c in cells(grid.dims, grid.cell_ranges(&boxes_a[f])) {
+                for &g in grid.items(c) {
+                    let g = g as usize;
+                    if !valid_b[g]
+                        || !boxes_overlap(&boxes_a[f], &boxes_b[g])
+                        || grid.owner_cell(&boxes_a[f], &boxes_b[g]) != c
+                    {
+                        continue;
+                    }
+                    if triangles_intersect(ca[f], cb[g]) {
+                        found.push([f as u32, g as u32]);
+                    }
+                }
+            }
+            found
+        })
+        .collect();
+    pairs.sort_unstable();
+    pairs
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Independent reference on integer corners: the separating axis test in exact integer
+    /// arithmetic. Closed convex sets are disjoint iff one of the candidate axes (both normals,
+    /// the nine edge cross products, and the in-plane edge normals for coplanar pairs)
+    /// separates their projections strictly.
+    fn sat_intersect(t: [[i64; 3]; 3], u: [[i64; 3]; 3]) -> bool {
+        let sub = |a: [i64; 3], b: [i64; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+        let cross = |a: [i64; 3], b: [i64; 3]| {
+            [
+                a[1] * b[2] - a[2] * b[1],
+                a[2] * b[0] - a[0] * b[2],
+                a[0] * b[1] - a[1] * b[0],
+            ]
+        };
+        let dot = |a: [i64; 3], b: [i64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let edges = |x: [[i64; 3]; 3]| [0, 1, 2].map(|k| sub(x[(k + 1) % 3], x[k]));
+        let (et, eu) = (edges(t), edges(u));
+        let (nt, nu) = (cross(et[0], et[1]), cross(eu[0], eu[1]));
+        let mut axes = vec![nt, nu];
+        for a in et {
+            for b in eu {
+                axes.push(cross(a, b));
+            }
+        }
+        for e in et {
+            axes.push(cross(nt, e));
+        }
+        for e in eu {
+            axes.push(cross(nu, e));
+        }
+        !axes.iter().any(|&ax| {
+            let pt = t.map(|p| dot(p, ax));
+            let pu = u.map(|p| dot(p, ax));
+            let (tl, th) = (*pt.iter().min().unwrap(), *pt.iter().max().unwrap());
+            let (ul, uh) = (*pu.iter().min().unwrap(), *pu.iter().max().unwrap());
+            th < ul || uh < tl
+        })
+    }
+
+    fn random_triangle(rng: &mut fastrand::Rng, span: i64) -> [[i64; 3]; 3] {
+        loop {
+            let t = [0; 3].map(|_| [0; 3].map(|_| rng.i64(0..span)));
+            if !is_exactly_degenerate(t.map(|p| p.map(|x| x as f32))) {
+                return t;
+            }
+        }
+    }
+
+    #[test]
+    fn matches_the_separating_axis_test_on_random_integer_triangles() {
+        // Small integer ranges make touching, coplanar and collinear cases common.
+        let mut rng = fastrand::Rng::with_seed(7);
+        let mut hits = [0usize; 2];
+        for span in [3, 4, 6, 10] {
+            for _ in 0..20_000 {
+                let t = random_triangle(&mut rng, span);
+                let u = random_triangle(&mut rng, span);
+                let expected = sat_intersect(t, u);
+                let f = |x: [[i64; 3]; 3]| x.map(|p| p.map(|c| c as f32));
+                assert_eq!(
+                    triangles_intersect(f(t), f(u)),
+                    expected,
+                    "triangles {t:?} and {u:?}"
+                );
+                assert_eq!(triangles_intersect(f(u), f(t)), expected);
+                hits[expected as usize] += 1;
+            }
+        }
+        // Both outcomes well represented.
+        assert!(hits[0] > 10_000 && hits[1] > 10_000, "{hits:?}");
+    }
+
+    #[test]
+    fn coplanar_and_touching_cases_by_hand() {
+        let t = [[0.0, 0.0, 0.0], [4.0, 0.0, 0.0], [0.0, 4.0, 0.0]];
+        // Coplanar, inside.
+        assert!(triangles_intersect(
+            t,
+            [[1.0, 1.0, 0.0], [2.0, 1.0, 0.0], [1.0, 2.0, 0.0]]
+        ));
+        // Coplanar, apart across the hypotenuse.
+        assert!(!triangles_intersect(
+            t,
+            [[3.0, 3.0, 0.0], [5.0, 3.0, 0.0], [3.0, 5.0, 0.0]]
+        ));
+        // Touching at a corner on the hypotenuse.
+        assert!(triangles_intersect(
+            t,
+            [[2.0, 2.0, 0.0], [5.0, 3.0, 0.0], [3.0, 5.0, 0.0]]
+        ));
+        // Standing on the plane, touching in one point; a hair above it, apart.
+        assert!(triangles_intersect(
+            t,
+            [[1.0, 1.0, 0.0], [1.0, 1.0, 3.0], [2.0, 1.0, 3.0]]
+        ));
+        let eps = f32::EPSILON;
+        assert!(!triangles_intersect(
+            t,
+            [[1.0, 1.0, eps], [1.0, 1.0, 3.0], [2.0, 1.0, 3.0]]
+        ));
+        // Piercing.
+        assert!(triangles_intersect(
+            t,
+            [[1.0, 1.0, -1.0], [1.0, 1.0, 1.0], [2.0, 1.0, 1.0]]
+        ));
+        assert!(is_exactly_degenerate([
+            [0.0, 0.0, 0.0],
+            [1.0, 1.0, 1.0],
+            [2.0, 2.0, 2.0]
+        ]));
+    }
+
+    #[test]
+    fn neighbours_intersect_only_when_folded() {
+        // Two faces sharing edge (0,1): flat, then folded onto each other.
+        let flat = Mesh::new(
+            vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.5, 1.0, 0.0],
+                [0.5, -1.0, 0.0],
+            ],
+            vec![[0, 1, 2], [1, 0, 3]],
+        )
+        .unwrap();
+        assert!(self_intersections(&flat).is_empty());
+        let folded = Mesh::new(
+            vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.5, 1.0, 0.0],
+                [0.5, 0.5, 0.0],
+            ],
+            vec![[0, 1, 2], [1, 0, 3]],
+        )
+        .unwrap();
+        assert_eq!(self_intersections(&folded), vec![[0, 1]]);
+        // Sharing one corner: apart, then the second face's far edge crossing the first.
+        let fan = |d: [f32; 3]| {
+            Mesh::new(
+                vec![
+                    [0.0, 0.0, 0.0],
+                    [2.0, 0.0, 0.0],
+                    [0.0, 2.0, 0.0],
+                    [1.0, 1.0, 1.0],
+                    d,
+                ],
+                vec![[0, 1, 2], [0, 3, 4]],
+            )
+            .unwrap()
+        };
+        assert!(self_intersections(&fan([-1.0, -1.0, 1.0])).is_empty());
+        assert_eq!(self_intersections(&fan([0.5, 0.5, -1.0])), vec![[0, 1]]);
+    }
+
+    /// Every pair by brute force, for checking the grid's candidate search.
+    fn brute_self_intersections(mesh: &Mesh) -> Vec<[u32; 2]> {
+        let p = mesh.positions();
+        let t = mesh.triangles();
+        let c = |f: usize| t[f].map(|v| p[v as usize]);
+        let mut out = Vec::new();
+        for f in 0..t.len() {
+            for g in f + 1..t.len() {
+                if !is_exactly_degenerate(c(f))
+                    && !is_exactly_degenerate(c(g))
+                    && faces_intersect(t[f], c(f), t[g], c(g))
+                {
+                    out.push([f as u32, g as u32]);
+                }
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn grid_search_matches_all_pairs() {
+        let mut rng = fastrand::Rng::with_seed(3);
+        for round in 0..20 {
+            // A jittered grid surface (neighbours share vertices) plus loose triangles.
+            let n = 8;
+            let mut positions = Vec::new();
+            for j in 0..n {
+                for i in 0..n {
+                    let z = if round % 2 == 0 { rng.f32() * 2.0 } else { 0.0 };
+                    positions.push([i as f32, j as f32, z]);
+                }
+            }
+            let mut triangles = Vec::new();
+            for j in 0..n - 1 {
+                for i in 0..n - 1 {
+                    let v = (j * n + i) as u32;
+                    triangles.push([v, v + 1, v + n as u32]);
+                    triangles.push([v + 1, v + n as u32 + 1, v + n as u32]);
+                }
+            }
+            for _ in 0..30 {
+                let base = positions.len() as u32;
+                for _ in 0..3 {
+                    positions.push([rng.f32() * 7.0, rng.f32() * 7.0, rng.f32() * 2.0 - 0.5]);
+                }
+                triangles.push([base, base + 1, base + 2]);
+            }
+            let mesh = Mesh::new(positions, triangles).unwrap();
+            let fast = self_intersections(&mesh);
+            assert_eq!(fast, brute_self_intersections(&mesh), "round {round}");
+            assert!(!fast.is_empty());
+        }
+    }
+
+    #[test]
+    fn two_meshes_intersect_where_they_cross() {
+        let a = Mesh::new(
+            vec![[0.0, 0.0, 0.0], [4.0, 0.0, 0.0], [0.0, 4.0, 0.0]],
+            vec![[0, 1, 2]],
+        )
+        .unwrap();
+        let b = |z: f32| {
+            Mesh::new(
+                vec![
+                    [1.0, 1.0, z - 1.0],
+                    [1.0, 1.0, z + 1.0],
+                    [2.0, 1.0, z + 1.0],
+                    [9.0, 9.0, 9.0],
+                    [9.0, 9.5, 9.0],
+                    [9.5, 9.0, 9.0],
+                ],
+                vec![[3, 4, 5], [0, 1, 2]],
+            )
+            .unwrap()
+        };
+        assert_eq!(mesh_intersections(&a, &b(0.0)), vec![[0, 1]]);
+        assert!(mesh_intersections(&a, &b(1.5)).is_empty());
+    }
+}

@@ -1,0 +1,299 @@
+//! Isotropic remeshing: the topology never changes, patch borders and planar caps stay, the
+//! result meets the quality the cfd profile promises (angles, edge lengths, distance to the
+//! input), it is free of self-intersections, and it is the same for any thread count.
+
+use destair::cfd::{check_surface, close_open_ends, find_patches, Inlet, Patches};
+use destair::metrics::distance::hausdorff_distance;
+use destair::phantom::marching_cubes::BorderEnds;
+use destair::phantom::{named_case, PhantomOptions};
+use destair::remesh::{remesh, EdgeTarget, RemeshError, RemeshParams, Remeshed};
+use destair::smooth::{smooth, Method};
+use destair::weights::VertexWeights;
+use destair::{Mesh, Topology};
+
+/// A sphere of radius r from a subdivided icosahedron, outward normals.
+fn icosphere(r: f32, subdivisions: usize) -> Mesh {
+    let t = (1.0 + 5f32.sqrt()) / 2.0;
+    let mut p: Vec<[f32; 3]> = vec![
+        [-1.0, t, 0.0],
+        [1.0, t, 0.0],
+        [-1.0, -t, 0.0],
+        [1.0, -t, 0.0],
+        [0.0, -1.0, t],
+        [0.0, 1.0, t],
+        [0.0, -1.0, -t],
+        [0.0, 1.0, -t],
+        [t, 0.0, -1.0],
+        [t, 0.0, 1.0],
+        [-t, 0.0, -1.0],
+        [-t, 0.0, 1.0],
+    ];
+    let mut f: Vec<[u32; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..subdivisions {
+        let mut mid = std::collections::HashMap::new();
+        let mut next = Vec::new();
+        for tri in &f {
+            let m: Vec<u32> = (0..3)
+                .map(|i| {
+                    let (a, b) = (tri[i].min(tri[(i + 1) % 3]), tri[i].max(tri[(i + 1) % 3]));
+                    *mid.entry((a, b)).or_insert_with(|| {
+                        let (x, y) = (p[a as usize], p[b as usize]);
+                        p.push(std::array::from_fn(|k| 0.5 * (x[k] + y[k])));
+                        (p.len() - 1) as u32
+                    })
+                })
+                .collect();
+            next.push([tri[0], m[0], m[2]]);
+            next.push([tri[1], m[1], m[0]]);
+            next.push([tri[2], m[2], m[1]]);
+            next.push([m[0], m[1], m[2]]);
+        }
+        f = next;
+    }
+    for q in &mut p {
+        let l = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt();
+        *q = q.map(|x| x * r / l);
+    }
+    Mesh::new(p, f).unwrap()
+}
+
+/// Share of edges within 20 % of their target and the smallest angle (degrees).
+fn quality(r: &Remeshed) -> (f64, f64) {
+    let topology = Topology::build(&r.mesh);
+    let checks = check_surface(&r.mesh, &topology, false, Some(&r.target_mm));
+    (
+        checks.edges.unwrap().within_20_percent,
+        checks.quality.min_angle_deg,
+    )
+}
+
+#[test]
+fn a_sphere_is_remeshed_to_the_target_without_changing_its_shape_or_topology() {
+    let sphere = icosphere(10.0, 4); // 5120 faces, edges about 0.8 mm
+    let ids = vec![1; sphere.n_triangles()];
+    for target in [0.5, 1.5] {
+        let r = remesh(&sphere, &ids, &RemeshParams::uniform(target)).unwrap();
+        let topology = Topology::build(&r.mesh);
+        let checks = check_surface(&r.mesh, &topology, false, Some(&r.target_mm));
+        assert!(checks.failures().is_empty(), "{:?}", checks.failures());
+        assert_eq!(topology.euler_characteristic(), 2);
+        let (within, min_angle) = quality(&r);
+        assert!(within >= 0.95, "target {target}: {within}");
+        assert!(min_angle >= 25.0, "target {target}: {min_angle}");
+        // Chords of a 10 mm sphere sag by L²/80: far below a fifth of the edge.
+        let h = hausdorff_distance(&r.mesh, &sphere);
+        assert!(h < target / 5.0, "target {target}: Hausdorff {h}");
+        // Every vertex back on the input surface.
+        for p in r.mesh.positions() {
+            let d = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+            assert!((d - 10.0).abs() < 0.05, "{d}");
+        }
+    }
+}
+
+#[test]
+fn the_same_result_for_any_thread_count_and_rerun() {
+    let sphere = icosphere(5.0, 3);
+    let ids = vec![1; sphere.n_triangles()];
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| remesh(&sphere, &ids, &RemeshParams::uniform(0.6)).unwrap())
+    };
+    let (a, b, c) = (run(1), run(2), run(2));
+    for other in [&b, &c] {
+        assert_eq!(a.mesh.triangles(), other.mesh.triangles());
+        assert!(a
+            .mesh
+            .positions()
+            .iter()
+            .zip(other.mesh.positions())
+            .all(|(x, y)| x.map(f32::to_bits) == y.map(f32::to_bits)));
+    }
+}
+
+fn smoothed_aneurysm(ends: BorderEnds, rx: f64, ry: f64) -> (Mesh, Patches) {
+    let case = named_case(
+        "aneurysm",
+        &PhantomOptions {
+            rotate_x_deg: rx,
+            rotate_y_deg: ry,
+            ends,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let raw = case.meshes[0].1.clone();
+    let topology = Topology::build(&raw);
+    let patches = find_patches(&raw, &topology, Inlet::Largest, None).unwrap();
+    let mut fixed = vec![false; raw.n_vertices()];
+    for p in &patches.patches {
+        for &v in &p.vertices {
+            fixed[v as usize] = true;
+        }
+    }
+    let (positions, _) = smooth(
+        &raw,
+        &topology,
+        &Method::Taubin {
+            lambda: 0.5,
+            mu: -0.53,
+        },
+        20,
+        &VertexWeights::uniform(raw.n_vertices()),
+        &fixed,
+    );
+    (
+        Mesh::new(positions, raw.triangles().to_vec()).unwrap(),
+        patches,
+    )
+}
+
+/// Largest distance of the faces of patch `id` from the plane of `patch` (mm).
+fn planarity(r: &Remeshed, id: u32, centre: [f64; 3], normal: [f64; 3]) -> f64 {
+    let p = r.mesh.positions();
+    r.mesh
+        .triangles()
+        .iter()
+        .zip(&r.face_ids)
+        .filter(|(_, &i)| i == id)
+        .flat_map(|(t, _)| t.iter())
+        .map(|&v| {
+            let q = p[v as usize].map(f64::from);
+            ((q[0] - centre[0]) * normal[0]
+                + (q[1] - centre[1]) * normal[1]
+                + (q[2] - centre[2]) * normal[2])
+                .abs()
+        })
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn the_capped_aneurysm_keeps_its_patches_and_planar_caps() {
+    for (rx, ry) in [(0.0, 0.0), (30.0, 45.0)] {
+        let (mesh, patches) = smoothed_aneurysm(BorderEnds::Capped, rx, ry);
+        let r = remesh(&mesh, &patches.face_ids, &RemeshParams::uniform(0.4)).unwrap();
+        let topology = Topology::build(&r.mesh);
+        let checks = check_surface(&r.mesh, &topology, false, Some(&r.target_mm));
+        assert!(checks.failures().is_empty(), "{:?}", checks.failures());
+        assert!(checks.quality.min_angle_deg >= 25.0, "{:?}", checks.quality);
+        assert!(
+            checks.edges.unwrap().within_20_percent >= 0.9,
+            "{:?}",
+            checks.edges
+        );
+        // The same patches, each still one planar cap, found again on the result.
+        let again = find_patches(&r.mesh, &topology, Inlet::Largest, None).unwrap();
+        assert_eq!(again.patches.len(), patches.patches.len());
+        for p in &patches.patches {
+            let faces = r.face_ids.iter().filter(|&&i| i == p.id).count();
+            assert!(faces > 10, "patch {} has {faces} faces", p.id);
+            let flat = planarity(&r, p.id, p.centre_mm, p.normal);
+            assert!(flat < 1e-5, "patch {}: {flat} mm off its plane", p.id);
+        }
+        // Vertices stay on the smoothed surface (to float precision of the projection).
+        let grid = destair::spatial::TriangleGrid::build(&mesh);
+        let far = grid
+            .distances(r.mesh.positions())
+            .into_iter()
+            .fold(0.0, f64::max);
+        assert!(far < 1e-4, "{far}");
+    }
+}
+
+#[test]
+fn open_ends_stay_open_and_can_be_closed_after() {
+    let (mesh, patches) = smoothed_aneurysm(BorderEnds::Open, 0.0, 0.0);
+    let before = Topology::build(&mesh).boundary_loops().len();
+    let r = remesh(&mesh, &patches.face_ids, &RemeshParams::uniform(0.4)).unwrap();
+    let topology = Topology::build(&r.mesh);
+    assert_eq!(topology.boundary_loops().len(), before);
+    let checks = check_surface(&r.mesh, &topology, true, Some(&r.target_mm));
+    assert!(checks.failures().is_empty(), "{:?}", checks.failures());
+    let again = find_patches(&r.mesh, &topology, Inlet::Largest, None).unwrap();
+    let (closed, _) = close_open_ends(&r.mesh, &again).unwrap();
+    let checks = check_surface(&closed, &Topology::build(&closed), false, None);
+    assert!(checks.failures().is_empty(), "{:?}", checks.failures());
+}
+
+#[test]
+fn relative_targets_follow_the_vessel_radius() {
+    let (mesh, patches) = smoothed_aneurysm(BorderEnds::Capped, 0.0, 0.0);
+    let r = remesh(
+        &mesh,
+        &patches.face_ids,
+        &RemeshParams {
+            edge: EdgeTarget::PerRadius(0.3),
+            iterations: 10,
+            clamp_mm: (0.0, f64::INFINITY),
+        },
+    )
+    .unwrap();
+    let topology = Topology::build(&r.mesh);
+    let checks = check_surface(&r.mesh, &topology, false, Some(&r.target_mm));
+    assert!(checks.failures().is_empty(), "{:?}", checks.failures());
+    // The sac (radius 5 mm) gets longer edges than the branches (radius 1.6-2.2 mm).
+    let p = r.mesh.positions();
+    let near = |c: [f32; 3], radius: f32| {
+        let sizes: Vec<f32> = (0..p.len())
+            .filter(|&v| (0..3).map(|k| (p[v][k] - c[k]).powi(2)).sum::<f32>().sqrt() < radius)
+            .map(|v| r.target_mm[v])
+            .collect();
+        sizes.iter().sum::<f32>() / sizes.len() as f32
+    };
+    let dome = near([20.5, 20.0, 29.5], 1.5);
+    let branch = near([6.0, 16.0, 40.0], 2.5);
+    assert!(dome > 1.5 * branch, "dome {dome} branch {branch}");
+}
+
+#[test]
+fn bad_requests_are_refused() {
+    let sphere = icosphere(1.0, 1);
+    let ids = vec![1; sphere.n_triangles()];
+    assert_eq!(
+        remesh(&sphere, &ids[1..], &RemeshParams::uniform(0.1)).unwrap_err(),
+        RemeshError::FaceIds {
+            given: ids.len() - 1,
+            faces: ids.len()
+        }
+    );
+    for bad in [0.0, -1.0, f64::NAN] {
+        assert!(matches!(
+            remesh(&sphere, &ids, &RemeshParams::uniform(bad)),
+            Err(RemeshError::Target(_))
+        ));
+    }
+    // Two faces on one directed edge.
+    let m = Mesh::new(
+        vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        vec![[0, 1, 2], [0, 1, 3]],
+    )
+    .unwrap();
+    assert!(matches!(
+        remesh(&m, &[1, 1], &RemeshParams::uniform(0.5)),
+        Err(RemeshError::NonManifold(..))
+    ));
+}
