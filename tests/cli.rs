@@ -459,3 +459,99 @@ fn inspect_patches_names_the_inlet_and_fails_on_a_wrong_count() {
     let out = destair(&["inspect", m, "--inlet", "0"]);
     assert_eq!(out.status.code(), Some(2), "--inlet needs --patches");
 }
+
+#[test]
+fn smooth_with_the_cfd_profile_writes_checked_patch_files_with_planar_caps() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for (folder, extra) in [("capped", None), ("open", Some("--open-ends"))] {
+        let out = d.join(folder);
+        let mut args = vec![
+            "phantom",
+            "aneurysm",
+            "--rotate-x",
+            "30",
+            "--rotate-y",
+            "45",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend(extra);
+        assert_ok(&destair(&args));
+    }
+    let smoothed = d.join("cfd");
+    std::fs::create_dir(&smoothed).unwrap();
+    for (folder, close) in [("capped", false), ("open", true)] {
+        let input = d.join(folder).join("aneurysm.ply");
+        let output = smoothed.join(format!("{folder}.ply"));
+        let mut args = vec![
+            "smooth",
+            input.to_str().unwrap(),
+            "-o",
+            output.to_str().unwrap(),
+            "--method",
+            "taubin",
+            "--iterations",
+            "20",
+            "--profile",
+            "cfd",
+            "--edge-mm",
+            "0.4",
+        ];
+        if close {
+            args.push("--close-open-ends");
+        }
+        let run = destair(&args);
+        assert_ok(&run);
+        let text = String::from_utf8_lossy(&run.stdout);
+        assert!(text.contains("checks passed: watertight,"), "{text}");
+        // Caps (and closed ends) planar after smoothing and remeshing.
+        let json: serde_json::Value = serde_json::from_slice(
+            &std::fs::read(smoothed.join(format!("{folder}_patches.json"))).unwrap(),
+        )
+        .unwrap();
+        let patches = json["patches"].as_array().unwrap();
+        assert_eq!(patches.len(), 3, "{json}");
+        for p in patches {
+            let off = p["planarity_mm"].as_f64().unwrap();
+            assert!(off < 1e-5, "{folder} {}: {off} mm off its plane", p["name"]);
+        }
+        // The written surface is the checked one: closed and oriented.
+        let mesh = destair::io::read_mesh(&output, &Default::default())
+            .unwrap()
+            .mesh;
+        let topology = destair::Topology::build(&mesh);
+        assert!(topology.is_closed_oriented_manifold());
+        for name in [
+            "solids.stl",
+            "wall.stl",
+            "inlet.stl",
+            "outlet_1.stl",
+            "outlet_2.stl",
+        ] {
+            assert!(
+                smoothed.join(format!("{folder}_{name}")).is_file(),
+                "{name}"
+            );
+        }
+    }
+    // A wrong patch count: refused, nothing written.
+    let input = d.join("capped").join("aneurysm.ply");
+    let output = smoothed.join("wrong.ply");
+    let run = destair(&[
+        "smooth",
+        input.to_str().unwrap(),
+        "-o",
+        output.to_str().unwrap(),
+        "--method",
+        "taubin",
+        "--profile",
+        "cfd",
+        "--expect-patches",
+        "2",
+    ]);
+    assert!(!run.status.success());
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(err.contains("3 patches found, 2 expected"), "{err}");
+    assert!(!output.exists() && !smoothed.join("wrong_patches.json").exists());
+}

@@ -8,8 +8,12 @@ pub mod checks;
 pub mod close;
 pub mod outputs;
 pub mod patches;
+pub mod profile;
 
 pub use checks::{check_surface, SurfaceChecks};
 pub use close::{close_open_ends, CloseError};
 pub use outputs::write_patch_files;
-pub use patches::{find_patches, Inlet, Patch, PatchError, PatchKind, Patches, WALL_ID};
+pub use patches::{
+    find_patches, remeasure_patches, Inlet, Patch, PatchError, PatchKind, Patches, WALL_ID,
+};
+pub use profile::{finish_surface, patch_vertices, CfdError, CfdParams, CfdSurface};

@@ -41,6 +41,29 @@ pub enum Inlet {
     Point([f64; 3]),
 }
 
+impl std::str::FromStr for Inlet {
+    type Err = String;
+
+    /// `largest`, a patch index in order of decreasing area (0 is the largest), or `X,Y,Z` (mm).
+    fn from_str(s: &str) -> Result<Inlet, String> {
+        if s == "largest" {
+            return Ok(Inlet::Largest);
+        }
+        if let Ok(index) = s.parse::<usize>() {
+            return Ok(Inlet::Index(index));
+        }
+        let parts: Vec<f64> = s
+            .split(',')
+            .map(|x| x.trim().parse::<f64>())
+            .collect::<Result<_, _>>()
+            .map_err(|_| format!("{s:?}: expected largest, a patch index, or X,Y,Z in mm"))?;
+        match parts[..] {
+            [x, y, z] if parts.iter().all(|v| v.is_finite()) => Ok(Inlet::Point([x, y, z])),
+            _ => Err(format!("{s:?}: a point is three finite numbers X,Y,Z (mm)")),
+        }
+    }
+}
+
 /// One boundary patch.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Patch {
@@ -160,30 +183,8 @@ pub fn find_patches(
     }
     // Caps.
     let caps = detect_caps(mesh, topology, None, &CapParams::default());
-    let tris = mesh.triangles();
     for cap in caps.caps {
-        let mut area_vector = [0.0f64; 3];
-        let mut weighted = [0.0f64; 3];
-        let mut total = 0.0;
-        for &f in &cap.faces {
-            let [a, b, c] = tris[f as usize].map(at);
-            let n = cross(sub(b, a), sub(c, a)).map(|x| x / 2.0);
-            let area = norm(n);
-            for k in 0..3 {
-                area_vector[k] += n[k];
-                weighted[k] += area * (a[k] + b[k] + c[k]) / 3.0;
-            }
-            total += area;
-        }
-        let centre = weighted.map(|x| if total > 0.0 { x / total } else { 0.0 });
-        found.push(patch(
-            PatchKind::Cap,
-            cap.faces,
-            cap.vertices,
-            area_vector,
-            centre,
-            &at,
-        ));
+        found.push(faces_patch(mesh, PatchKind::Cap, cap.faces, cap.vertices));
     }
     if found.is_empty() {
         return Err(PatchError::NoEnds);
@@ -240,6 +241,94 @@ pub fn find_patches(
         wall_faces,
         face_ids,
     })
+}
+
+/// A patch made of faces (a cap, a closed end): vector area, area-weighted centre and planarity
+/// from the faces themselves.
+fn faces_patch(mesh: &Mesh, kind: PatchKind, faces: Vec<u32>, vertices: Vec<u32>) -> Patch {
+    let p = mesh.positions();
+    let at = |v: u32| p[v as usize].map(f64::from);
+    let tris = mesh.triangles();
+    let mut area_vector = [0.0f64; 3];
+    let mut weighted = [0.0f64; 3];
+    let mut total = 0.0;
+    for &f in &faces {
+        let [a, b, c] = tris[f as usize].map(at);
+        let n = cross(sub(b, a), sub(c, a)).map(|x| x / 2.0);
+        let area = norm(n);
+        for k in 0..3 {
+            area_vector[k] += n[k];
+            weighted[k] += area * (a[k] + b[k] + c[k]) / 3.0;
+        }
+        total += area;
+    }
+    let centre = weighted.map(|x| if total > 0.0 { x / total } else { 0.0 });
+    patch(kind, faces, vertices, area_vector, centre, &at)
+}
+
+/// The patches of `prior` measured again on a mesh that was changed without changing its
+/// patches (remeshed, extended): faces by `face_ids`, open ends as the boundary loop nearest to
+/// where each was. Ids, names, kinds and the direction of each normal are kept.
+pub fn remeasure_patches(
+    mesh: &Mesh,
+    topology: &Topology,
+    face_ids: Vec<u32>,
+    prior: &Patches,
+) -> Patches {
+    let p = mesh.positions();
+    let at = |v: u32| p[v as usize].map(f64::from);
+    let mut patches = Vec::with_capacity(prior.patches.len());
+    for old in &prior.patches {
+        let mut new = if old.kind == PatchKind::OpenEnd {
+            let nearest = topology
+                .boundary_loops()
+                .iter()
+                .map(|l| {
+                    let rim: Vec<[f64; 3]> = l.vertices.iter().map(|&v| at(v)).collect();
+                    (l, polygon_area_centre(&rim))
+                })
+                .min_by(|x, y| {
+                    norm(sub(x.1 .1, old.centre_mm)).total_cmp(&norm(sub(y.1 .1, old.centre_mm)))
+                });
+            match nearest {
+                Some((l, (area_vector, centre))) => {
+                    let mut vertices = l.vertices.clone();
+                    let mut disc = area_vector.map(|x| -x);
+                    if vertices.len() > 1
+                        && !follows_faces(mesh, topology, vertices[0], vertices[1])
+                    {
+                        vertices.reverse();
+                        disc = area_vector;
+                    }
+                    patch(PatchKind::OpenEnd, Vec::new(), vertices, disc, centre, &at)
+                }
+                None => old.clone(),
+            }
+        } else {
+            let faces: Vec<u32> = (0..face_ids.len() as u32)
+                .filter(|&f| face_ids[f as usize] == old.id)
+                .collect();
+            let mut vertices: Vec<u32> = faces
+                .iter()
+                .flat_map(|&f| mesh.triangles()[f as usize])
+                .collect();
+            vertices.sort_unstable();
+            vertices.dedup();
+            faces_patch(mesh, old.kind, faces, vertices)
+        };
+        if dot(new.normal, old.normal) < 0.0 {
+            new.normal = new.normal.map(|x| -x + 0.0);
+        }
+        new.id = old.id;
+        new.name = old.name.clone();
+        patches.push(new);
+    }
+    let wall_faces = face_ids.iter().filter(|&&id| id == WALL_ID).count();
+    Patches {
+        patches,
+        wall_faces,
+        face_ids,
+    }
 }
 
 /// A patch from its vector area (oriented like the mesh), centre and vertices; id and name

@@ -48,22 +48,7 @@ pub struct Args {
 
 /// `largest`, an index, or X,Y,Z in mm.
 fn parse_inlet(s: &str) -> Result<destair::cfd::Inlet, String> {
-    use destair::cfd::Inlet;
-    if s == "largest" {
-        return Ok(Inlet::Largest);
-    }
-    if let Ok(index) = s.parse::<usize>() {
-        return Ok(Inlet::Index(index));
-    }
-    let parts: Vec<f64> = s
-        .split(',')
-        .map(|x| x.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| format!("{s:?}: expected largest, a patch index, or X,Y,Z in mm"))?;
-    match parts[..] {
-        [x, y, z] if parts.iter().all(|v| v.is_finite()) => Ok(Inlet::Point([x, y, z])),
-        _ => Err(format!("{s:?}: a point is three finite numbers X,Y,Z (mm)")),
-    }
+    s.parse()
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]

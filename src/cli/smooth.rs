@@ -54,8 +54,36 @@ pub struct Args {
     /// Refuse the result if a vertex moved further than this many voxel diagonals (diverged).
     #[arg(long, default_value_t = destair::smooth::DEFAULT_MAX_DISPLACEMENT_VOXELS)]
     max_displacement_voxels: f32,
+    /// `cfd`: ready the vessel for a flow solver. Its patches (caps, open ends) are found
+    /// first and held while smoothing; then open ends are closed (--close-open-ends), the
+    /// surface is remeshed (--edge-mm or --edge-per-radius), checked (watertight, oriented, no
+    /// self-intersection, no degenerate face), and the patch files are written next to the
+    /// output (OUTPUT-STEM_solids.stl, one STL per patch, .vtp, _patches.json).
+    #[arg(long, conflicts_with = "annotate")]
+    profile: Option<Profile>,
+    /// cfd profile: remesh to this edge length (mm).
+    #[arg(long, requires = "profile")]
+    edge_mm: Option<f64>,
+    /// cfd profile: remesh to this multiple of the local vessel radius.
+    #[arg(long, requires = "profile", conflicts_with = "edge_mm")]
+    edge_per_radius: Option<f64>,
+    /// cfd profile: close open ends with flat caps.
+    #[arg(long, requires = "profile")]
+    close_open_ends: bool,
+    /// cfd profile: the inlet: `largest`, a patch index by decreasing area, or X,Y,Z (mm).
+    #[arg(long, default_value = "largest", requires = "profile")]
+    inlet: destair::cfd::Inlet,
+    /// cfd profile: the number of patches the vessel has; another count fails.
+    #[arg(long, requires = "profile")]
+    expect_patches: Option<usize>,
     #[command(flatten)]
     ctx: ContextArgs,
+}
+
+/// What `--profile` readies a surface for.
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum Profile {
+    Cfd,
 }
 
 pub fn exec(args: Args) -> anyhow::Result<()> {
@@ -77,6 +105,12 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         staircase,
         force,
         max_displacement_voxels,
+        profile,
+        edge_mm,
+        edge_per_radius,
+        close_open_ends,
+        inlet,
+        expect_patches,
         ctx,
     } = args;
     ctx.check()?;
@@ -129,9 +163,35 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         ))
         .into());
     }
+    let remesh_target = match (edge_mm, edge_per_radius) {
+        (Some(x), _) | (_, Some(x)) if !(x.is_finite() && x > 0.0) => {
+            return Err(UsageError(format!(
+                "--edge-mm / --edge-per-radius must be a positive number, not {x}"
+            ))
+            .into())
+        }
+        (Some(mm), _) => Some(destair::remesh::EdgeTarget::Mm(mm)),
+        (_, Some(k)) => Some(destair::remesh::EdgeTarget::PerRadius(k)),
+        _ => None,
+    };
     let loaded = read_input(&input, &ReadOptions::default())?;
     let mesh = &loaded.mesh;
     let topology = destair::Topology::build(mesh);
+    let stem = output
+        .file_stem()
+        .map_or_else(|| "vessel".into(), |s| s.to_string_lossy().into_owned());
+    // The cfd profile's patches, found before smoothing so the smoother can hold them.
+    let patches = match profile {
+        Some(Profile::Cfd) => {
+            let found = destair::cfd::find_patches(mesh, &topology, inlet, expect_patches)
+                .map_err(|e| Rejected(format!("{}: {e}; nothing written", input.display())))?;
+            for path in destair::cfd::outputs::planned_files(folder, &stem, &found) {
+                refuse_overwriting_inputs(&path, &inputs, force)?;
+            }
+            Some(found)
+        }
+        None => None,
+    };
     let estimate = destair::analysis::voxel_size(mesh, &topology);
     let voxel = match (voxel, method.needs_voxel()) {
         (Some(v), needs) => {
@@ -191,11 +251,17 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
                 .map_err(|e| UsageError(format!("{}: {e}", path.display())))?
         }
     };
-    let fixed = if move_boundary {
+    let mut fixed = if move_boundary {
         vec![false; mesh.n_vertices()]
     } else {
         boundary_vertices(&topology)
     };
+    if let Some(p) = &patches {
+        let held = destair::cfd::patch_vertices(p, mesh.n_vertices());
+        for (f, h) in fixed.iter_mut().zip(held) {
+            *f |= h;
+        }
+    }
     let started = std::time::Instant::now();
     let (positions, stats) = smooth(mesh, &topology, &method, iterations, &weights, &fixed);
     let seconds = started.elapsed().as_secs_f64();
@@ -208,6 +274,22 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     .map_err(|m| Rejected(format!("{}: {m}; nothing written", input.display())))?;
     let mut smoothed = mesh.clone();
     smoothed.positions_mut().copy_from_slice(&positions);
+    let cfd = match &patches {
+        Some(p) => {
+            let params = destair::cfd::CfdParams {
+                close_open_ends,
+                remesh: remesh_target.map(|edge| destair::remesh::RemeshParams {
+                    edge,
+                    ..destair::remesh::RemeshParams::uniform(1.0)
+                }),
+            };
+            let done = destair::cfd::finish_surface(&smoothed, p, &params)
+                .map_err(|e| Rejected(format!("{}: {e}; nothing written", input.display())))?;
+            smoothed = done.mesh.clone();
+            Some(done)
+        }
+        None => None,
+    };
     let lengths: Vec<f32> = destair::metrics::displacements(mesh.positions(), &positions)
         .into_iter()
         .map(|d| d as f32)
@@ -244,5 +326,37 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         stats.n_fixed,
         output.display()
     );
+    if let Some(done) = &cfd {
+        print!("{}", destair::report::inspect::patches_text(&done.patches));
+        let q = &done.checks.quality;
+        print!(
+            "  checks passed: watertight{}, oriented, no self-intersection, no degenerate face; min angle {:.1} deg (1st percentile {:.1})",
+            if done.checks.open_ends_allowed { " but for the open ends" } else { "" },
+            q.min_angle_deg,
+            q.p1_angle_deg
+        );
+        if let (Some(e), Some(r)) = (&done.checks.edges, &done.remeshed) {
+            print!(
+                "; remeshed in {:.2} s: {} triangles, edges {:.3}-{:.3} mm (mean {:.3}), {:.1} % within 20 % of the target",
+                r.seconds,
+                done.mesh.n_triangles(),
+                e.min_mm,
+                e.max_mm,
+                e.mean_mm,
+                100.0 * e.within_20_percent
+            );
+        }
+        println!();
+        let written = destair::cfd::write_patch_files(
+            folder,
+            &stem,
+            &done.mesh,
+            &loaded.meta,
+            &done.patches,
+        )?;
+        for path in written {
+            println!("  wrote {}", path.display());
+        }
+    }
     Ok(())
 }
