@@ -107,6 +107,8 @@ struct Remesher {
     size: Vec<f64>,
     /// Arc position (mm) of each rim vertex on its line; unused for other kinds.
     arc: Vec<f64>,
+    /// The input face each vertex inside a patch was last projected onto (NONE: not yet).
+    hint: Vec<u32>,
     reference: Reference,
     buf: Vec<u32>,
     buf2: Vec<u32>,
@@ -213,6 +215,7 @@ pub fn remesh(
     let mut r = Remesher {
         kind: Vec::new(),
         arc: Vec::new(),
+        hint: Vec::new(),
         he,
         size,
         reference,
@@ -371,6 +374,8 @@ impl Remesher {
         }
         self.kind = kind;
         self.arc = arc;
+        // Inside a patch all faces around a vertex are the patch's, so any is a start.
+        self.hint = self.reference.start_face.clone();
     }
 
     /// Arc position of vertex v on line l (a corner's found by nearest point).
@@ -401,12 +406,20 @@ impl Remesher {
     }
 
     /// Projects vertex v onto its patch or line of the input; returns the new position and size.
-    fn projected(&self, v: u32, q: [f64; 3]) -> ([f64; 3], f64) {
-        let fallback = (q, self.size[v as usize]);
+    /// Vertex v moved to q, put back onto its patch or line of the input: the new position,
+    /// the target edge length there, and the input face it is on (NONE off patches).
+    fn projected(&self, v: u32, q: [f64; 3]) -> ([f64; 3], f64, u32) {
+        let size = self.size[v as usize];
         match self.kind[v as usize] {
-            Kind::Interior(id) => self.reference.project_to_patch(id, q).unwrap_or(fallback),
-            Kind::Rim(l) => self.reference.lines[l as usize].eval(self.arc[v as usize]),
-            Kind::Corner => (self.he.pos[v as usize], self.size[v as usize]),
+            Kind::Interior(id) => self
+                .reference
+                .project_to_patch(id, q, self.hint[v as usize], 0.5 * size)
+                .unwrap_or((q, size, NONE)),
+            Kind::Rim(l) => {
+                let (p, s) = self.reference.lines[l as usize].eval(self.arc[v as usize]);
+                (p, s, NONE)
+            }
+            Kind::Corner => (self.he.pos[v as usize], size, NONE),
         }
     }
 
@@ -460,8 +473,13 @@ impl Remesher {
         self.kind.push(kind);
         self.arc.push(arc);
         self.size.push(self.target(a, b));
-        let (p, s) = self.projected(m, mid);
+        self.hint.push(match (self.kind[a as usize], kind) {
+            (Kind::Interior(i), Kind::Interior(j)) if i == j => self.hint[a as usize],
+            _ => NONE,
+        });
+        let (p, s, face) = self.projected(m, mid);
         self.size[m as usize] = s;
+        self.hint[m as usize] = face;
         let keep_mid = matches!(kind, Kind::Interior(_)) && {
             // Faces around m are turned over by the move if their normals flip.
             let mut ring = std::mem::take(&mut self.buf);
@@ -706,7 +724,7 @@ impl Remesher {
 
     fn relax_and_project(&mut self) {
         let n = self.he.pos.len();
-        let moved: Vec<Option<([f64; 3], f64, f64)>> = (0..n as u32)
+        let moved: Vec<Option<([f64; 3], f64, f64, u32)>> = (0..n as u32)
             .into_par_iter()
             .map_init(Vec::new, |ring, v| {
                 if !self.he.vert_alive[v as usize] {
@@ -729,7 +747,7 @@ impl Remesher {
                         let line = &self.reference.lines[l as usize];
                         let s = line.between(self.arc_on(ends[0], l), self.arc_on(ends[1], l));
                         let (p, size) = line.eval(s);
-                        Some((p, size, s))
+                        Some((p, size, s, NONE))
                     }
                     Kind::Interior(_) => {
                         self.he.outgoing(v, ring);
@@ -779,8 +797,8 @@ impl Remesher {
                             }
                             None => centre,
                         };
-                        let (p, size) = self.projected(v, q);
-                        Some((p, size, 0.0))
+                        let (p, size, face) = self.projected(v, q);
+                        Some((p, size, 0.0, face))
                     }
                 }
             })
@@ -789,9 +807,10 @@ impl Remesher {
         let old_arc = self.arc.clone();
         let mut moved_any = vec![false; n];
         for (v, m) in moved.into_iter().enumerate() {
-            if let Some((p, s, a)) = m {
+            if let Some((p, s, a, face)) = m {
                 self.he.pos[v] = p;
                 self.size[v] = s;
+                self.hint[v] = face;
                 if let Kind::Rim(_) = self.kind[v] {
                     self.arc[v] = a;
                 }

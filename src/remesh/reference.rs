@@ -125,6 +125,82 @@ struct PatchSurface {
     id: u32,
     grid: TriangleGrid,
     corner_size: Vec<[f64; 3]>,
+    /// Faces (local vertex indices) and, per local vertex, the faces around it (CSR), for
+    /// walking from a face to its neighbours.
+    triangles: Vec<[u32; 3]>,
+    vertex_face_offsets: Vec<u32>,
+    vertex_faces: Vec<u32>,
+}
+
+impl PatchSurface {
+    fn new(id: u32, sub: &Mesh, corner_size: Vec<[f64; 3]>) -> PatchSurface {
+        let triangles = sub.triangles().to_vec();
+        let mut vertex_face_offsets = vec![0u32; sub.n_vertices() + 1];
+        for t in &triangles {
+            for &v in t {
+                vertex_face_offsets[v as usize + 1] += 1;
+            }
+        }
+        for i in 1..vertex_face_offsets.len() {
+            vertex_face_offsets[i] += vertex_face_offsets[i - 1];
+        }
+        let mut cursor = vertex_face_offsets.clone();
+        let mut vertex_faces = vec![0u32; triangles.len() * 3];
+        for (f, t) in triangles.iter().enumerate() {
+            for &v in t {
+                vertex_faces[cursor[v as usize] as usize] = f as u32;
+                cursor[v as usize] += 1;
+            }
+        }
+        PatchSurface {
+            id,
+            grid: TriangleGrid::build(sub),
+            corner_size,
+            triangles,
+            vertex_face_offsets,
+            vertex_faces,
+        }
+    }
+
+    /// Closest point of face f to q and its squared distance.
+    fn closest(&self, f: u32, q: [f64; 3]) -> ([f64; 3], f64) {
+        let t = self.grid.triangle(f).map(|c| c.map(f64::from));
+        let x = closest_point_on_triangle(q, t[0], t[1], t[2]);
+        let d2 = (0..3).map(|k| (x[k] - q[k]).powi(2)).sum();
+        (x, d2)
+    }
+
+    /// From face `start`, moves to the face sharing a corner that is closer to q while there is
+    /// one: the nearest face near where the vertex was, which for the small moves of
+    /// relaxation is the nearest face, found without a grid search, and never a face across a
+    /// thin gap.
+    fn walk(&self, start: u32, q: [f64; 3]) -> (u32, [f64; 3], f64) {
+        let (mut x, mut best) = self.closest(start, q);
+        let mut face = start;
+        for _ in 0..64 {
+            let mut moved = false;
+            for v in self.triangles[face as usize] {
+                let (a, b) = (
+                    self.vertex_face_offsets[v as usize] as usize,
+                    self.vertex_face_offsets[v as usize + 1] as usize,
+                );
+                for &g in &self.vertex_faces[a..b] {
+                    if g == face {
+                        continue;
+                    }
+                    let (y, d2) = self.closest(g, q);
+                    if d2 < best {
+                        (face, x, best) = (g, y, d2);
+                        moved = true;
+                    }
+                }
+            }
+            if !moved {
+                break;
+            }
+        }
+        (face, x, best)
+    }
 }
 
 #[derive(Debug, Clone)]
@@ -133,6 +209,8 @@ pub(super) struct Reference {
     pub lines: Vec<Line>,
     /// For each input vertex inside a feature line: the line and the arc position there.
     pub on_line: Vec<Option<(u32, f64)>>,
+    /// For each input vertex, a face of its patch around it (local index; a start for walks).
+    pub start_face: Vec<u32>,
 }
 
 /// Border marker in a feature line's key (the open side of a boundary edge).
@@ -162,31 +240,53 @@ impl Reference {
                     .iter()
                     .map(|&f| tris[f as usize].map(|v| size[v as usize]))
                     .collect();
-                PatchSurface {
-                    id,
-                    grid: TriangleGrid::build(&sub),
-                    corner_size,
-                }
+                PatchSurface::new(id, &sub, corner_size)
             })
             .collect();
         let (lines, on_line) = feature_lines(mesh, topology, face_ids, size);
+        // Local face indices run in input order within each patch.
+        let mut start_face = vec![u32::MAX; mesh.n_vertices()];
+        let mut next_local = vec![0u32; ids.len()];
+        for (f, t) in tris.iter().enumerate() {
+            let k = ids.binary_search(&face_ids[f]).unwrap_or(0);
+            for &v in t {
+                start_face[v as usize] = next_local[k];
+            }
+            next_local[k] += 1;
+        }
         Reference {
             patches,
             lines,
             on_line,
+            start_face,
         }
     }
 
-    /// The nearest point of patch `id` to `q`, and the target edge length there; `None` if the
-    /// input has no such patch.
-    pub fn project_to_patch(&self, id: u32, q: [f64; 3]) -> Option<([f64; 3], f64)> {
+    /// The nearest point of patch `id` to `q`, the target edge length there and the face it is
+    /// on; `None` if the input has no such patch. With a `hint` (the face the point was on
+    /// before a small move), the search walks from there and asks the grid only when the walk
+    /// ends further than `reach` (mm) from q.
+    pub fn project_to_patch(
+        &self,
+        id: u32,
+        q: [f64; 3],
+        hint: u32,
+        reach: f64,
+    ) -> Option<([f64; 3], f64, u32)> {
         let patch = self.patches.iter().find(|s| s.id == id)?;
-        let near = patch.grid.nearest(q.map(|x| x as f32))?;
-        let t = patch.grid.triangle(near.triangle).map(|c| c.map(f64::from));
-        let x = closest_point_on_triangle(q, t[0], t[1], t[2]);
+        let walked = (hint < patch.triangles.len() as u32).then(|| patch.walk(hint, q));
+        let (face, x) = match walked {
+            Some((f, x, d2)) if d2 <= reach * reach => (f, x),
+            _ => {
+                let near = patch.grid.nearest(q.map(|x| x as f32))?;
+                let (x, _) = patch.closest(near.triangle, q);
+                (near.triangle, x)
+            }
+        };
+        let t = patch.grid.triangle(face).map(|c| c.map(f64::from));
         let w = barycentric(x, t);
-        let s = patch.corner_size[near.triangle as usize];
-        Some((x, w[0] * s[0] + w[1] * s[1] + w[2] * s[2]))
+        let s = patch.corner_size[face as usize];
+        Some((x, w[0] * s[0] + w[1] * s[1] + w[2] * s[2], face))
     }
 }
 
