@@ -552,3 +552,57 @@ fn surface_checks_name_what_is_wrong() {
     assert!(check_surface(&open, &t, false, None).failures()[0].contains("not watertight"));
     assert!(check_surface(&open, &t, true, None).failures().is_empty());
 }
+
+#[test]
+fn flow_extensions_run_along_the_normal_and_end_in_a_flat_cap() {
+    use destair::cfd::{add_flow_extensions, check_surface, ExtendError};
+    for (ends, rx, ry) in [
+        (BorderEnds::Capped, 0.0, 0.0),
+        (BorderEnds::Capped, 30.0, 45.0),
+        (BorderEnds::Open, 20.0, -35.0),
+    ] {
+        let m = aneurysm(ends, rx, ry);
+        let before = patches_of(&m, Inlet::Largest).unwrap();
+        let (extended, after) = add_flow_extensions(&m, &before, 5.0, &[]).unwrap();
+        let topology = Topology::build(&extended);
+        let checks = check_surface(&extended, &topology, false, None);
+        assert!(checks.failures().is_empty(), "{:?}", checks.failures());
+        for (b, a) in before.patches.iter().zip(&after.patches) {
+            assert_eq!((a.id, &a.name), (b.id, &b.name));
+            let length = 5.0 * b.diameter_mm;
+            assert!((a.extension_mm - length).abs() < 1e-9);
+            // The new cap: one extension length out along the normal, the same direction, a
+            // circle of about the same area, exactly flat.
+            let expected: [f64; 3] = std::array::from_fn(|k| b.centre_mm[k] + length * b.normal[k]);
+            assert!(
+                distance(a.centre_mm, expected) < 1e-3,
+                "{} {:?}",
+                a.name,
+                a.centre_mm
+            );
+            assert!(angle_deg(a.normal, b.normal) < 1e-3);
+            assert!(
+                (a.diameter_mm / b.diameter_mm - 1.0).abs() < 0.03,
+                "{} {} -> {}",
+                a.name,
+                b.diameter_mm,
+                a.diameter_mm
+            );
+            assert!(a.planarity_mm < 1e-5, "{}: {}", a.name, a.planarity_mm);
+            assert!(!a.faces.is_empty() && a.kind != PatchKind::OpenEnd);
+        }
+        // Only the inlet extended: the outlets stay where they were.
+        let (_, only) = add_flow_extensions(&m, &before, 2.0, &[2]).unwrap();
+        assert!(only.patches[0].extension_mm > 0.0);
+        for (b, a) in before.patches.iter().zip(&only.patches).skip(1) {
+            assert_eq!(a.extension_mm, 0.0);
+            assert!(distance(a.centre_mm, b.centre_mm) < 1e-6);
+        }
+    }
+    let m = aneurysm(BorderEnds::Capped, 0.0, 0.0);
+    let p = patches_of(&m, Inlet::Largest).unwrap();
+    assert_eq!(
+        add_flow_extensions(&m, &p, 0.0, &[]).unwrap_err(),
+        ExtendError::Length(0.0)
+    );
+}

@@ -461,7 +461,7 @@ fn inspect_patches_names_the_inlet_and_fails_on_a_wrong_count() {
 }
 
 #[test]
-fn smooth_with_the_cfd_profile_writes_checked_patch_files_with_planar_caps() {
+fn smooth_with_the_cfd_profile_writes_checked_patch_files_with_planar_caps_and_extensions() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     for (folder, extra) in [("capped", None), ("open", Some("--open-ends"))] {
@@ -500,6 +500,8 @@ fn smooth_with_the_cfd_profile_writes_checked_patch_files_with_planar_caps() {
         ];
         if close {
             args.push("--close-open-ends");
+        } else {
+            args.extend(["--flow-extension", "5"]);
         }
         let run = destair(&args);
         assert_ok(&run);
@@ -515,6 +517,16 @@ fn smooth_with_the_cfd_profile_writes_checked_patch_files_with_planar_caps() {
         for p in patches {
             let off = p["planarity_mm"].as_f64().unwrap();
             assert!(off < 1e-5, "{folder} {}: {off} mm off its plane", p["name"]);
+            let extension = p["extension_mm"].as_f64().unwrap();
+            let diameter = p["diameter_mm"].as_f64().unwrap();
+            if close {
+                assert_eq!(extension, 0.0);
+            } else {
+                assert!(
+                    (extension / diameter - 5.0).abs() < 0.2,
+                    "{extension} {diameter}"
+                );
+            }
         }
         // The written surface is the checked one: closed and oriented.
         let mesh = destair::io::read_mesh(&output, &Default::default())

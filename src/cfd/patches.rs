@@ -83,6 +83,8 @@ pub struct Patch {
     /// Largest distance of the patch's vertices (a loop's rim, a cap's vertices) from the plane
     /// through its centre along its normal (mm): 0 for an exactly planar end.
     pub planarity_mm: f64,
+    /// Length of the flow extension that ends in this patch (mm; 0 without one).
+    pub extension_mm: f64,
     /// Faces of the patch (empty for an open end).
     #[serde(skip)]
     pub faces: Vec<u32>,
@@ -321,6 +323,7 @@ pub fn remeasure_patches(
         }
         new.id = old.id;
         new.name = old.name.clone();
+        new.extension_mm = old.extension_mm;
         patches.push(new);
     }
     let wall_faces = face_ids.iter().filter(|&&id| id == WALL_ID).count();
@@ -361,6 +364,7 @@ pub(super) fn patch(
         area_mm2: area,
         diameter_mm: (4.0 * area / std::f64::consts::PI).sqrt(),
         planarity_mm,
+        extension_mm: 0.0,
         faces,
         vertices,
     }

@@ -1,10 +1,11 @@
-//! The cfd profile after smoothing, as one step: open ends closed by flat caps (if asked), the
-//! wall remeshed to the target with patch borders kept, the patches measured again on the
+//! The cfd profile after smoothing, as one step: flow extensions (if asked), open ends closed
+//! by flat caps (if asked), the wall remeshed to the target with patch borders kept, the patches measured again on the
 //! result, and every check passed, or an error with the reasons. Smoothing itself is the
 //! caller's, with [`patch_vertices`] held fixed so caps stay planar and rims stay put.
 
 use super::checks::{check_surface, SurfaceChecks};
 use super::close::{close_open_ends, CloseError};
+use super::extend::{add_flow_extensions, ExtendError};
 use super::patches::{remeasure_patches, PatchKind, Patches};
 use crate::mesh::{Mesh, Topology};
 use crate::remesh::{remesh, RemeshError, RemeshParams};
@@ -12,8 +13,12 @@ use serde::Serialize;
 use thiserror::Error;
 
 /// What the profile does after smoothing.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct CfdParams {
+    /// Flow extensions of this many equivalent diameters (none when `None`).
+    pub flow_extension: Option<f64>,
+    /// Patch ids that get a flow extension (every patch when empty).
+    pub extend_patches: Vec<u32>,
     /// Close open ends with flat caps (otherwise they stay open patches).
     pub close_open_ends: bool,
     /// Remesh to this target (no remeshing when `None`).
@@ -25,6 +30,8 @@ pub struct CfdParams {
 pub enum CfdError {
     #[error(transparent)]
     Close(#[from] CloseError),
+    #[error(transparent)]
+    Extend(#[from] ExtendError),
     #[error(transparent)]
     Remesh(#[from] RemeshError),
     #[error("the surface fails the cfd checks: {}", .0.join("; "))]
@@ -75,10 +82,14 @@ pub fn finish_surface(
     // Measured on the smoothed surface first: open-end planes follow the smoothed rims.
     let topology = Topology::build(smoothed);
     let measured = remeasure_patches(smoothed, &topology, patches.face_ids.clone(), patches);
+    let (mesh, patches) = match params.flow_extension {
+        Some(k) => add_flow_extensions(smoothed, &measured, k, &params.extend_patches)?,
+        None => (smoothed.clone(), measured),
+    };
     let (mesh, patches) = if params.close_open_ends {
-        close_open_ends(smoothed, &measured)?
+        close_open_ends(&mesh, &patches)?
     } else {
-        (smoothed.clone(), measured)
+        (mesh, patches)
     };
     let (mesh, patches, target, remeshed) = match &params.remesh {
         Some(rp) => {

@@ -58,7 +58,8 @@ pub struct Args {
     /// first and held while smoothing; then open ends are closed (--close-open-ends), the
     /// surface is remeshed (--edge-mm or --edge-per-radius), checked (watertight, oriented, no
     /// self-intersection, no degenerate face), and the patch files are written next to the
-    /// output (OUTPUT-STEM_solids.stl, one STL per patch, .vtp, _patches.json).
+    /// output (OUTPUT-STEM_solids.stl, one STL per patch, .vtp, _patches.json). Flow extensions
+    /// with --flow-extension.
     #[arg(long, conflicts_with = "annotate")]
     profile: Option<Profile>,
     /// cfd profile: remesh to this edge length (mm).
@@ -70,6 +71,13 @@ pub struct Args {
     /// cfd profile: close open ends with flat caps.
     #[arg(long, requires = "profile")]
     close_open_ends: bool,
+    /// cfd profile: add a straight flow extension of this many equivalent diameters at every
+    /// patch (or at the patches of --extend), ending in a flat cap.
+    #[arg(long, requires = "profile")]
+    flow_extension: Option<f64>,
+    /// cfd profile: the patch ids that get a flow extension (comma-separated; default all).
+    #[arg(long, requires = "flow_extension", value_delimiter = ',')]
+    extend: Vec<u32>,
     /// cfd profile: the inlet: `largest`, a patch index by decreasing area, or X,Y,Z (mm).
     #[arg(long, default_value = "largest", requires = "profile")]
     inlet: destair::cfd::Inlet,
@@ -109,6 +117,8 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         edge_mm,
         edge_per_radius,
         close_open_ends,
+        flow_extension,
+        extend,
         inlet,
         expect_patches,
         ctx,
@@ -277,6 +287,8 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     let cfd = match &patches {
         Some(p) => {
             let params = destair::cfd::CfdParams {
+                flow_extension,
+                extend_patches: extend.clone(),
                 close_open_ends,
                 remesh: remesh_target.map(|edge| destair::remesh::RemeshParams {
                     edge,

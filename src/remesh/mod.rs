@@ -91,6 +91,10 @@ pub struct Remeshed {
     pub flips: usize,
 }
 
+/// Where relaxation puts a vertex: position, target edge length there, arc position (rims),
+/// input face (inside patches).
+type Placement = ([f64; 3], f64, f64, u32);
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Kind {
     /// Inside the patch of this id: moves on that patch.
@@ -724,7 +728,7 @@ impl Remesher {
 
     fn relax_and_project(&mut self) {
         let n = self.he.pos.len();
-        let moved: Vec<Option<([f64; 3], f64, f64, u32)>> = (0..n as u32)
+        let moved: Vec<Option<Placement>> = (0..n as u32)
             .into_par_iter()
             .map_init(Vec::new, |ring, v| {
                 if !self.he.vert_alive[v as usize] {
