@@ -567,3 +567,40 @@ fn smooth_with_the_cfd_profile_writes_checked_patch_files_with_planar_caps_and_e
     assert!(err.contains("3 patches found, 2 expected"), "{err}");
     assert!(!output.exists() && !smoothed.join("wrong_patches.json").exists());
 }
+
+#[test]
+fn the_cfd_profile_refuses_a_vessel_that_smoothing_pinched() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    assert_ok(&destair(&[
+        "phantom",
+        "thin-vessel",
+        "--out",
+        d.to_str().unwrap(),
+    ]));
+    let input = d.join("vessel.ply");
+    let run = |method: &str, out: &str| {
+        destair(&[
+            "smooth",
+            input.to_str().unwrap(),
+            "-o",
+            d.join(out).to_str().unwrap(),
+            "--method",
+            method,
+            "--iterations",
+            "20",
+            "--profile",
+            "cfd",
+        ])
+    };
+    // Uniform Laplace shrinks the two-voxel vessel to a third of its narrowest lumen.
+    let pinched = run("laplace", "laplace.ply");
+    assert!(!pinched.status.success());
+    let err = String::from_utf8_lossy(&pinched.stderr);
+    assert!(err.contains("pinched the vessel"), "{err}");
+    assert!(!d.join("laplace.ply").exists() && !d.join("laplace_patches.json").exists());
+    // Taubin keeps it.
+    let kept = run("taubin", "taubin.ply");
+    assert_ok(&kept);
+    assert!(d.join("taubin_patches.json").is_file());
+}

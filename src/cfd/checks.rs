@@ -34,6 +34,86 @@ pub struct SurfaceChecks {
     pub quality: TriangleQuality,
     /// Edge lengths against the remeshing target, when there was one.
     pub edges: Option<EdgeLengthStats>,
+    /// How smoothing changed the narrowest lumen, when measured.
+    pub narrowing: Option<Narrowing>,
+}
+
+/// Smoothing fails a vessel when its narrowest lumen (the distance from the wall to the
+/// opposite wall) falls below this share of what it was.
+pub const MIN_LUMEN_RATIO: f64 = 0.5;
+
+/// How smoothing changed the vessel's narrowest lumen.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Narrowing {
+    /// Narrowest distance to the opposite wall after / before smoothing (1 = unchanged).
+    pub ratio: f64,
+    pub before_mm: f64,
+    pub after_mm: f64,
+    /// Where the narrowest lumen is after smoothing (mm).
+    pub at_mm: [f32; 3],
+}
+
+/// Distance (mm) from each vertex to the opposite wall: the nearest face that faces back
+/// (its normal against the vertex normal by more than 60 degrees) on the inner side of the
+/// vertex. Infinite where there is none. Neighbouring faces on the same side (a tube's wall
+/// along its axis, a staircase's steps) do not count, so on a tube this is its diameter.
+pub fn opposite_wall_distance(mesh: &Mesh, topology: &Topology) -> Vec<f64> {
+    use crate::mesh::geometry::{face_normals, vertex_normals};
+    use rayon::prelude::*;
+    let grid = crate::spatial::TriangleGrid::build(mesh);
+    let faces = face_normals(mesh);
+    let normals = vertex_normals(mesh, topology);
+    let inward = if signed_volume(mesh) < 0.0 { 1.0 } else { -1.0 };
+    let p = mesh.positions();
+    (0..mesh.n_vertices())
+        .into_par_iter()
+        .map(|v| {
+            let n = normals[v].map(|x| inward * x as f64);
+            if n == [0.0; 3] {
+                return f64::INFINITY;
+            }
+            let x = p[v].map(f64::from);
+            let facing_back = |f: u32| {
+                let m = faces[f as usize];
+                // n is inward; a face of the opposite wall has its outward normal along n.
+                let d = n[0] * m[0] as f64 + n[1] * m[1] as f64 + n[2] * m[2] as f64;
+                if d <= 0.5 {
+                    return false;
+                }
+                let t = grid.triangle(f);
+                t.iter().any(|c| {
+                    (c[0] as f64 - x[0]) * n[0]
+                        + (c[1] as f64 - x[1]) * n[1]
+                        + (c[2] as f64 - x[2]) * n[2]
+                        > 0.0
+                })
+            };
+            grid.nearest_matching(p[v], facing_back)
+                .map_or(f64::INFINITY, |near| near.distance)
+        })
+        .collect()
+}
+
+/// The narrowest lumen of `after` against the narrowest of `before` (the same vertices,
+/// moved): per vertex the distance would follow whichever staircase face happens to face back,
+/// so the vessel's narrowest point is compared instead. `None` when no vertex has an opposite
+/// wall in both.
+pub fn narrowing(before: &Mesh, after: &Mesh, topology: &Topology) -> Option<Narrowing> {
+    let narrowest = |d: &[f64]| {
+        d.iter()
+            .enumerate()
+            .filter(|(_, x)| x.is_finite())
+            .min_by(|x, y| x.1.total_cmp(y.1))
+            .map(|(v, &x)| (v, x))
+    };
+    let (_, b) = narrowest(&opposite_wall_distance(before, topology))?;
+    let (v, a) = narrowest(&opposite_wall_distance(after, topology))?;
+    (b > 0.0).then(|| Narrowing {
+        ratio: a / b,
+        before_mm: b,
+        after_mm: a,
+        at_mm: after.positions()[v],
+    })
 }
 
 impl SurfaceChecks {
@@ -77,6 +157,12 @@ impl SurfaceChecks {
                 self.self_intersections
             ));
         }
+        if let Some(n) = self.narrowing.filter(|n| n.ratio < MIN_LUMEN_RATIO) {
+            out.push(format!(
+                "smoothing pinched the vessel: its narrowest lumen went from {:.3} to {:.3} mm, near ({:.2}, {:.2}, {:.2}) mm (use fewer iterations or a volume-keeping method such as taubin or hc)",
+                n.before_mm, n.after_mm, n.at_mm[0], n.at_mm[1], n.at_mm[2]
+            ));
+        }
         if self.degenerate_triangles > 0 {
             out.push(format!(
                 "{} degenerate triangles (collinear corners)",
@@ -116,5 +202,6 @@ pub fn check_surface(
         degenerate_triangles: exactly_degenerate_triangles(mesh).len(),
         quality: triangle_quality(mesh),
         edges: target_mm.map(|t| edge_length_stats(mesh, topology.edges(), t)),
+        narrowing: None,
     }
 }

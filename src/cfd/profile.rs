@@ -72,15 +72,18 @@ pub fn patch_vertices(patches: &Patches, n_vertices: usize) -> Vec<bool> {
     fixed
 }
 
-/// Closes, remeshes and checks `smoothed`, whose patches `patches` were found before smoothing
-/// (smoothing moves vertices, not faces, so the face ids still hold).
+/// Extends, closes, remeshes and checks `smoothed` (the vertices of `original`, moved), whose
+/// patches `patches` were found on `original` (smoothing moves vertices, not faces, so the
+/// face ids still hold). A vessel whose narrowest lumen smoothing halved fails.
 pub fn finish_surface(
+    original: &Mesh,
     smoothed: &Mesh,
     patches: &Patches,
     params: &CfdParams,
 ) -> Result<CfdSurface, CfdError> {
     // Measured on the smoothed surface first: open-end planes follow the smoothed rims.
     let topology = Topology::build(smoothed);
+    let narrowed = super::checks::narrowing(original, smoothed, &topology);
     let measured = remeasure_patches(smoothed, &topology, patches.face_ids.clone(), patches);
     let (mesh, patches) = match params.flow_extension {
         Some(k) => add_flow_extensions(smoothed, &measured, k, &params.extend_patches)?,
@@ -109,7 +112,8 @@ pub fn finish_surface(
     };
     let topology = Topology::build(&mesh);
     let open = patches.patches.iter().any(|p| p.kind == PatchKind::OpenEnd);
-    let checks = check_surface(&mesh, &topology, open, target.as_deref());
+    let mut checks = check_surface(&mesh, &topology, open, target.as_deref());
+    checks.narrowing = narrowed;
     let failures = checks.failures();
     if !failures.is_empty() {
         return Err(CfdError::Checks(failures));

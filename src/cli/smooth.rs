@@ -295,7 +295,7 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
                     ..destair::remesh::RemeshParams::uniform(1.0)
                 }),
             };
-            let done = destair::cfd::finish_surface(&smoothed, p, &params)
+            let done = destair::cfd::finish_surface(mesh, &smoothed, p, &params)
                 .map_err(|e| Rejected(format!("{}: {e}; nothing written", input.display())))?;
             smoothed = done.mesh.clone();
             Some(done)

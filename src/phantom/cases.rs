@@ -14,7 +14,7 @@ use std::path::Path;
 use thiserror::Error;
 
 /// The named cases `destair phantom` knows.
-pub const CASE_NAMES: [&str; 10] = [
+pub const CASE_NAMES: [&str; 11] = [
     "sphere-iso",
     "sphere-aniso",
     "sphere-aniso-1-16",
@@ -25,6 +25,7 @@ pub const CASE_NAMES: [&str; 10] = [
     "cap-cylinder",
     "neck",
     "aneurysm",
+    "thin-vessel",
 ];
 
 /// Smooth-surface variants (marching cubes on a smooth field rather than a binary mask): the
@@ -173,6 +174,17 @@ pub fn named_case(name: &str, options: &PhantomOptions) -> Result<PhantomCase, P
         "aneurysm" => {
             let v = aneurysm_volume(&mut rng);
             ("vessel bifurcation with a saccular aneurysm at 0.4 mm isotropic, clipped at the volume border, with a hand-painted block of slices that leaves a staircase (Moench 2012, §5)", v, vec![("aneurysm", 1)])
+        }
+        "thin-vessel" => {
+            let spacing = [0.4; 3];
+            let mut v = LabelVolume::new([24, 24, 50], spacing, [0.0; 3]);
+            let j = jitter(&mut rng, spacing);
+            let tube = Shape::Tube {
+                points: vec![add([4.4, 4.6, -1.0], j), add([5.6, 4.6, 21.0], j)],
+                radii: vec![0.45, 0.45],
+            };
+            v.paint(&tube, 1);
+            ("a straight vessel two voxels across (0.9 mm at 0.4 mm isotropic), slightly oblique, clipped at both ends: uniform smoothing pinches it", v, vec![("vessel", 1)])
         }
         other => return Err(PhantomError::UnknownName(other.to_string())),
     };

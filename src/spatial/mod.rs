@@ -250,6 +250,11 @@ impl TriangleGrid {
 
     /// The nearest triangle to `p` and its distance; `None` if there are no triangles.
     pub fn nearest(&self, p: [f32; 3]) -> Option<Nearest> {
+        self.nearest_matching(p, |_| true)
+    }
+
+    /// The nearest triangle to `p` among those `keep` accepts (by index); `None` if none is.
+    pub fn nearest_matching(&self, p: [f32; 3], keep: impl Fn(u32) -> bool) -> Option<Nearest> {
         if self.triangles.is_empty() {
             return None;
         }
@@ -284,6 +289,9 @@ impl TriangleGrid {
                 let ids = &self.cell_triangles
                     [self.cell_offsets[c] as usize..self.cell_offsets[c + 1] as usize];
                 for &f in ids {
+                    if !keep(f) {
+                        continue;
+                    }
                     let (centre, radius) = self.spheres[f as usize];
                     let to_centre = (0..3)
                         .map(|a| (q[a] - centre[a]).powi(2))
@@ -331,7 +339,7 @@ impl TriangleGrid {
                 break;
             }
         }
-        Some(Nearest {
+        best.is_finite().then_some(Nearest {
             distance: best,
             triangle: best_triangle,
         })
