@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::open_box;
+use common::{aneurysm, open_box};
 use destair::cfd::{
     close_open_ends, find_patches, CloseError, Inlet, PatchError, PatchKind, Patches, WALL_ID,
 };
@@ -12,20 +12,6 @@ use destair::phantom::marching_cubes::BorderEnds;
 use destair::phantom::volume::{apply, rotation_matrix};
 use destair::phantom::{named_case, PhantomOptions};
 use destair::{Mesh, Topology};
-
-fn aneurysm(ends: BorderEnds, rx: f64, ry: f64) -> Mesh {
-    let case = named_case(
-        "aneurysm",
-        &PhantomOptions {
-            rotate_x_deg: rx,
-            rotate_y_deg: ry,
-            ends,
-            ..Default::default()
-        },
-    )
-    .unwrap();
-    case.meshes[0].1.clone()
-}
 
 fn patches_of(mesh: &Mesh, inlet: Inlet) -> Result<Patches, PatchError> {
     find_patches(mesh, &Topology::build(mesh), inlet, None)

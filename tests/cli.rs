@@ -484,26 +484,13 @@ fn smooth_with_the_cfd_profile_writes_checked_patch_files_with_planar_caps_and_e
     for (folder, close) in [("capped", false), ("open", true)] {
         let input = d.join(folder).join("aneurysm.ply");
         let output = smoothed.join(format!("{folder}.ply"));
-        let mut args = vec![
-            "smooth",
-            input.to_str().unwrap(),
-            "-o",
-            output.to_str().unwrap(),
-            "--method",
-            "taubin",
-            "--iterations",
-            "20",
-            "--profile",
-            "cfd",
-            "--edge-mm",
-            "0.4",
-        ];
+        let mut args = vec!["--iterations", "20", "--profile", "cfd", "--edge-mm", "0.4"];
         if close {
             args.push("--close-open-ends");
         } else {
             args.extend(["--flow-extension", "5"]);
         }
-        let run = destair(&args);
+        let run = common::cohort::smooth(&input, &output, "taubin", &args);
         assert_ok(&run);
         let text = String::from_utf8_lossy(&run.stdout);
         assert!(text.contains("checks passed: watertight,"), "{text}");
@@ -550,18 +537,12 @@ fn smooth_with_the_cfd_profile_writes_checked_patch_files_with_planar_caps_and_e
     // A wrong patch count: refused, nothing written.
     let input = d.join("capped").join("aneurysm.ply");
     let output = smoothed.join("wrong.ply");
-    let run = destair(&[
-        "smooth",
-        input.to_str().unwrap(),
-        "-o",
-        output.to_str().unwrap(),
-        "--method",
+    let run = common::cohort::smooth(
+        &input,
+        &output,
         "taubin",
-        "--profile",
-        "cfd",
-        "--expect-patches",
-        "2",
-    ]);
+        &["--profile", "cfd", "--expect-patches", "2"],
+    );
     assert!(!run.status.success());
     let err = String::from_utf8_lossy(&run.stderr);
     assert!(err.contains("3 patches found, 2 expected"), "{err}");
@@ -580,18 +561,12 @@ fn the_cfd_profile_refuses_a_vessel_that_smoothing_pinched() {
     ]));
     let input = d.join("vessel.ply");
     let run = |method: &str, out: &str| {
-        destair(&[
-            "smooth",
-            input.to_str().unwrap(),
-            "-o",
-            d.join(out).to_str().unwrap(),
-            "--method",
+        common::cohort::smooth(
+            &input,
+            &d.join(out),
             method,
-            "--iterations",
-            "20",
-            "--profile",
-            "cfd",
-        ])
+            &["--iterations", "20", "--profile", "cfd"],
+        )
     };
     // Uniform Laplace shrinks the two-voxel vessel to a third of its narrowest lumen.
     let pinched = run("laplace", "laplace.ply");

@@ -2,6 +2,9 @@
 //! Tables 4, 5), staircase and cap detection (§3.2, §3.3, §4.3), context- and distance-aware
 //! smoothing (Table 3; Moench 2010 Table 1).
 
+mod common;
+
+use common::icosphere;
 use destair::analysis::{stack_axis, StackAxis, StackAxisParams};
 use destair::phantom::volume::{apply, rotation_matrix};
 use destair::phantom::{named_case, PhantomOptions};
@@ -79,77 +82,6 @@ fn stack_axis_of_cut_spheres_and_none_for_a_round_sphere() {
         matches!(est, StackAxis::TooWeak { .. }),
         "a round sphere has no staircases: {est:?}"
     );
-}
-
-/// A sphere of `radius` mm made by subdividing an icosahedron `levels` times (20 * 4^levels faces).
-fn icosphere(levels: usize, radius: f32) -> destair::Mesh {
-    let t = (1.0 + 5f32.sqrt()) / 2.0;
-    let mut p: Vec<[f32; 3]> = vec![
-        [-1.0, t, 0.0],
-        [1.0, t, 0.0],
-        [-1.0, -t, 0.0],
-        [1.0, -t, 0.0],
-        [0.0, -1.0, t],
-        [0.0, 1.0, t],
-        [0.0, -1.0, -t],
-        [0.0, 1.0, -t],
-        [t, 0.0, -1.0],
-        [t, 0.0, 1.0],
-        [-t, 0.0, -1.0],
-        [-t, 0.0, 1.0],
-    ];
-    let mut f: Vec<[u32; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    let unit = |v: [f32; 3]| {
-        let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-        v.map(|x| x / l)
-    };
-    for q in &mut p {
-        *q = unit(*q);
-    }
-    for _ in 0..levels {
-        let mut mid = std::collections::HashMap::new();
-        let mut next = Vec::new();
-        for tri in &f {
-            let mut m = [0u32; 3];
-            for k in 0..3 {
-                let (a, b) = (tri[k].min(tri[(k + 1) % 3]), tri[k].max(tri[(k + 1) % 3]));
-                m[k] = *mid.entry((a, b)).or_insert_with(|| {
-                    let (pa, pb) = (p[a as usize], p[b as usize]);
-                    p.push(unit([pa[0] + pb[0], pa[1] + pb[1], pa[2] + pb[2]]));
-                    (p.len() - 1) as u32
-                });
-            }
-            next.extend([
-                [tri[0], m[0], m[2]],
-                [tri[1], m[1], m[0]],
-                [tri[2], m[2], m[1]],
-                [m[0], m[1], m[2]],
-            ]);
-        }
-        f = next;
-    }
-    destair::Mesh::new(p.iter().map(|q| q.map(|x| x * radius)).collect(), f).unwrap()
 }
 
 use destair::analysis::{detect_caps, CapParams};

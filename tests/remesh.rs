@@ -2,81 +2,16 @@
 //! result meets the quality the cfd profile promises (angles, edge lengths, distance to the
 //! input), it is free of self-intersections, and it is the same for any thread count.
 
+mod common;
+
+use common::{aneurysm, icosphere};
 use destair::cfd::{check_surface, close_open_ends, find_patches, Inlet, Patches};
 use destair::metrics::distance::hausdorff_distance;
 use destair::phantom::marching_cubes::BorderEnds;
-use destair::phantom::{named_case, PhantomOptions};
 use destair::remesh::{remesh, EdgeTarget, RemeshError, RemeshParams, Remeshed};
 use destair::smooth::{smooth, Method};
 use destair::weights::VertexWeights;
 use destair::{Mesh, Topology};
-
-/// A sphere of radius r from a subdivided icosahedron, outward normals.
-fn icosphere(r: f32, subdivisions: usize) -> Mesh {
-    let t = (1.0 + 5f32.sqrt()) / 2.0;
-    let mut p: Vec<[f32; 3]> = vec![
-        [-1.0, t, 0.0],
-        [1.0, t, 0.0],
-        [-1.0, -t, 0.0],
-        [1.0, -t, 0.0],
-        [0.0, -1.0, t],
-        [0.0, 1.0, t],
-        [0.0, -1.0, -t],
-        [0.0, 1.0, -t],
-        [t, 0.0, -1.0],
-        [t, 0.0, 1.0],
-        [-t, 0.0, -1.0],
-        [-t, 0.0, 1.0],
-    ];
-    let mut f: Vec<[u32; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..subdivisions {
-        let mut mid = std::collections::HashMap::new();
-        let mut next = Vec::new();
-        for tri in &f {
-            let m: Vec<u32> = (0..3)
-                .map(|i| {
-                    let (a, b) = (tri[i].min(tri[(i + 1) % 3]), tri[i].max(tri[(i + 1) % 3]));
-                    *mid.entry((a, b)).or_insert_with(|| {
-                        let (x, y) = (p[a as usize], p[b as usize]);
-                        p.push(std::array::from_fn(|k| 0.5 * (x[k] + y[k])));
-                        (p.len() - 1) as u32
-                    })
-                })
-                .collect();
-            next.push([tri[0], m[0], m[2]]);
-            next.push([tri[1], m[1], m[0]]);
-            next.push([tri[2], m[2], m[1]]);
-            next.push([m[0], m[1], m[2]]);
-        }
-        f = next;
-    }
-    for q in &mut p {
-        let l = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt();
-        *q = q.map(|x| x * r / l);
-    }
-    Mesh::new(p, f).unwrap()
-}
 
 /// Share of edges within 20 % of their target and the smallest angle (degrees).
 fn quality(r: &Remeshed) -> (f64, f64) {
@@ -90,7 +25,7 @@ fn quality(r: &Remeshed) -> (f64, f64) {
 
 #[test]
 fn a_sphere_is_remeshed_to_the_target_without_changing_its_shape_or_topology() {
-    let sphere = icosphere(10.0, 4); // 5120 faces, edges about 0.8 mm
+    let sphere = icosphere(4, 10.0); // 5120 faces, edges about 0.8 mm
     let ids = vec![1; sphere.n_triangles()];
     for target in [0.5, 1.5] {
         let r = remesh(&sphere, &ids, &RemeshParams::uniform(target)).unwrap();
@@ -114,7 +49,7 @@ fn a_sphere_is_remeshed_to_the_target_without_changing_its_shape_or_topology() {
 
 #[test]
 fn the_same_result_for_any_thread_count_and_rerun() {
-    let sphere = icosphere(5.0, 3);
+    let sphere = icosphere(3, 5.0);
     let ids = vec![1; sphere.n_triangles()];
     let run = |threads: usize| {
         rayon::ThreadPoolBuilder::new()
@@ -136,17 +71,7 @@ fn the_same_result_for_any_thread_count_and_rerun() {
 }
 
 fn smoothed_aneurysm(ends: BorderEnds, rx: f64, ry: f64) -> (Mesh, Patches) {
-    let case = named_case(
-        "aneurysm",
-        &PhantomOptions {
-            rotate_x_deg: rx,
-            rotate_y_deg: ry,
-            ends,
-            ..Default::default()
-        },
-    )
-    .unwrap();
-    let raw = case.meshes[0].1.clone();
+    let raw = aneurysm(ends, rx, ry);
     let topology = Topology::build(&raw);
     let patches = find_patches(&raw, &topology, Inlet::Largest, None).unwrap();
     let mut fixed = vec![false; raw.n_vertices()];
@@ -271,7 +196,7 @@ fn relative_targets_follow_the_vessel_radius() {
 
 #[test]
 fn bad_requests_are_refused() {
-    let sphere = icosphere(1.0, 1);
+    let sphere = icosphere(1, 1.0);
     let ids = vec![1; sphere.n_triangles()];
     assert_eq!(
         remesh(&sphere, &ids[1..], &RemeshParams::uniform(0.1)).unwrap_err(),

@@ -198,15 +198,12 @@ pub fn remesh(
         .zip(&curved)
         .map(|(&n, &c)| n.min(c.max(n / 4.0)))
         .collect();
+    // Averaging may only lower a size (a fine spot spreads; a coarse one does not).
     for _ in 0..2 {
-        size = (0..mesh.n_vertices())
-            .into_par_iter()
-            .map(|v| {
-                let ring = topology.neighbors(v);
-                let sum: f64 = ring.iter().map(|&u| size[u as usize]).sum();
-                ((size[v] + sum) / (1 + ring.len()) as f64).min(size[v].max(nominal[v] / 4.0))
-            })
-            .collect();
+        let averaged = sizing::ring_average(&topology, &size);
+        for (s, a) in size.iter_mut().zip(averaged) {
+            *s = s.min(a);
+        }
     }
     let reference = Reference::build(mesh, &topology, face_ids, &size);
     let pos: Vec<[f64; 3]> = mesh.positions().iter().map(|p| p.map(f64::from)).collect();
@@ -650,24 +647,30 @@ impl Remesher {
         }
     }
 
+    /// The corners [a, b, c, d] of the two faces of h (edge a-b, c and d opposite) when its
+    /// edge may be flipped: alive, inside a patch, seen once (from its lower half-edge), and
+    /// not between two faces that share all corners.
+    fn flippable(&self, h: u32) -> Option<[u32; 4]> {
+        if !self.he.face_alive[(h / 3) as usize] {
+            return None;
+        }
+        let t = self.he.twin(h);
+        if t == NONE || t < h || self.he.is_feature(h) {
+            return None;
+        }
+        let c = self.he.to(next(h));
+        let d = self.he.to(next(t));
+        (c != d).then(|| [self.he.from(h), self.he.to(h), c, d])
+    }
+
     fn flip_to_valence(&mut self) {
         let n_he = self.he.tri.len() as u32 * 3;
         let mut count = 0;
         let mut ring = Vec::new();
         for h in 0..n_he {
-            if !self.he.face_alive[(h / 3) as usize] {
+            let Some([a, b, c, d]) = self.flippable(h) else {
                 continue;
-            }
-            let t = self.he.twin(h);
-            if t == NONE || t < h || self.he.is_feature(h) {
-                continue;
-            }
-            let (a, b) = (self.he.from(h), self.he.to(h));
-            let c = self.he.to(next(h));
-            let d = self.he.to(next(t));
-            if c == d {
-                continue;
-            }
+            };
             let mut val = [0i32; 4];
             let mut tgt = [0i32; 4];
             let mut exists = false;
@@ -929,19 +932,12 @@ impl Remesher {
         let n_he = self.he.tri.len() as u32 * 3;
         let mut count = 0;
         for h in 0..n_he {
-            if !self.he.face_alive[(h / 3) as usize] {
+            let Some([a, b, c, d]) = self.flippable(h) else {
                 continue;
-            }
-            let t = self.he.twin(h);
-            if t == NONE || t < h || self.he.is_feature(h) {
-                continue;
-            }
+            };
             let p = |v: u32| self.he.pos[v as usize];
-            let (a, b) = (self.he.from(h), self.he.to(h));
-            let c = self.he.to(next(h));
-            let d = self.he.to(next(t));
             let old = min_angle([p(a), p(b), p(c)]).min(min_angle([p(b), p(a), p(d)]));
-            if old >= limit || c == d {
+            if old >= limit {
                 continue;
             }
             let new = min_angle([p(c), p(d), p(b)]).min(min_angle([p(d), p(c), p(a)]));

@@ -59,16 +59,21 @@ pub fn local_radius(mesh: &Mesh, topology: &Topology, max_mm: f64) -> Vec<f64> {
     // Two rounds of one-ring averaging.
     let mut radius = raw;
     for _ in 0..2 {
-        radius = (0..mesh.n_vertices())
-            .into_par_iter()
-            .map(|v| {
-                let ring = topology.neighbors(v);
-                let sum: f64 = ring.iter().map(|&u| radius[u as usize]).sum();
-                (radius[v] + sum) / (1 + ring.len()) as f64
-            })
-            .collect();
+        radius = ring_average(topology, &radius);
     }
     radius
+}
+
+/// Each vertex's value averaged with its one-ring's.
+pub(super) fn ring_average(topology: &Topology, values: &[f64]) -> Vec<f64> {
+    (0..values.len())
+        .into_par_iter()
+        .map(|v| {
+            let ring = topology.neighbors(v);
+            let sum: f64 = ring.iter().map(|&u| values[u as usize]).sum();
+            (values[v] + sum) / (1 + ring.len()) as f64
+        })
+        .collect()
 }
 
 /// Largest edge length (mm) at each vertex for which a chord stays within about a tenth of its

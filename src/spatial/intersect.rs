@@ -230,23 +230,9 @@ impl BoxGrid {
             lo = [0.0; 3];
             hi = [0.0; 3];
         }
-        let n = boxes.len().max(1);
         let extent: [f64; 3] = std::array::from_fn(|k| hi[k] - lo[k]);
-        let max_extent = extent.iter().cloned().fold(0.0, f64::max).max(1e-9);
-        let mut cell = (2.0 * size / (3 * (boxes.len() + extra.len()).max(1)) as f64)
-            .max(max_extent * 1e-6)
-            .max(1e-9);
-        let budget = (4 * n + 64) as f64;
-        let count = |c: f64| {
-            extent
-                .iter()
-                .map(|e| (e / c).floor() + 1.0)
-                .product::<f64>()
-        };
-        while count(cell) > budget {
-            cell *= 1.25;
-        }
-        let dims: [usize; 3] = std::array::from_fn(|k| (extent[k] / cell).floor() as usize + 1);
+        let wanted = 2.0 * size / (3 * (boxes.len() + extra.len()).max(1)) as f64;
+        let (cell, dims) = super::grid_cells(extent, wanted, boxes.len().max(1));
         let mut grid = BoxGrid {
             origin: lo,
             cell,

@@ -100,6 +100,28 @@ pub fn point_triangle_distance(p: [f32; 3], t: [[f32; 3]; 3]) -> f64 {
     dot(d, d).sqrt()
 }
 
+/// Cell size and cell counts of a uniform grid over a box of `extent` (mm): cells of about
+/// `wanted` mm, but no more than a few per item (4 n + 64 in all).
+pub(crate) fn grid_cells(extent: [f64; 3], wanted: f64, n_items: usize) -> (f64, [usize; 3]) {
+    let max_extent = extent.iter().cloned().fold(0.0, f64::max).max(1e-9);
+    let mut cell = wanted.max(max_extent * 1e-6).max(1e-9);
+    let budget = (4 * n_items + 64) as f64;
+    let count = |c: f64| {
+        extent
+            .iter()
+            .map(|e| (e / c).floor() + 1.0)
+            .product::<f64>()
+    };
+    if count(cell) > budget {
+        cell *= (count(cell) / budget).cbrt();
+        while count(cell) > budget {
+            cell *= 1.1;
+        }
+    }
+    let dims = std::array::from_fn(|a| (extent[a] / cell).floor() as usize + 1);
+    (cell, dims)
+}
+
 /// A uniform grid over a mesh's triangles for nearest-triangle queries. Build once, query many.
 #[derive(Debug, Clone)]
 pub struct TriangleGrid {
@@ -152,25 +174,7 @@ impl TriangleGrid {
             hi = [0.0; 3];
         }
         let extent: [f64; 3] = std::array::from_fn(|a| (hi[a] - lo[a]).max(0.0));
-        let max_extent = extent.iter().cloned().fold(0.0, f64::max).max(1e-9);
-        let mut cell = (2.0 * edge_sum / (3 * n) as f64)
-            .max(max_extent * 1e-6)
-            .max(1e-9);
-        // Keep the number of cells within a few per triangle.
-        let budget = (4 * n + 64) as f64;
-        let count = |c: f64| {
-            extent
-                .iter()
-                .map(|e| (e / c).floor() + 1.0)
-                .product::<f64>()
-        };
-        if count(cell) > budget {
-            cell *= (count(cell) / budget).cbrt();
-            while count(cell) > budget {
-                cell *= 1.1;
-            }
-        }
-        let dims: [usize; 3] = std::array::from_fn(|a| (extent[a] / cell).floor() as usize + 1);
+        let (cell, dims) = grid_cells(extent, 2.0 * edge_sum / (3 * n) as f64, n);
         let cell_of =
             |x: f64, a: usize| (((x - lo[a]) / cell).floor().max(0.0) as usize).min(dims[a] - 1);
         let linear = |i: usize, j: usize, k: usize| (k * dims[1] + j) * dims[0] + i;
