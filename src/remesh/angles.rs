@@ -1,0 +1,107 @@
+//! The last pass of remeshing: the sharpest angles left are flipped or collapsed away.
+
+use super::{min_angle, Kind, Remesher, SPLIT};
+
+impl Remesher {
+    /// Removes the sharpest angles left: flips an edge of a face with an angle under 30
+    /// degrees when that raises the smaller minimum angle of the two faces, collapses the
+    /// shortest possible edge of a face under 25 degrees when every face it changes ends up
+    /// better, and relaxes again, until nothing changes.
+    pub(super) fn improve_angles(&mut self) {
+        for _round in 0..8 {
+            let changed = self.flip_sharp(30f64.to_radians());
+            self.check("flip sharp");
+            let changed = changed + self.collapse_sharp(25f64.to_radians());
+            self.check("collapse sharp");
+            if changed == 0 {
+                break;
+            }
+            self.relax_and_project();
+        }
+    }
+
+    fn face_min_angle(&self, f: usize) -> f64 {
+        min_angle(self.he.tri[f].map(|v| self.he.pos[v as usize]))
+    }
+
+    fn collapse_sharp(&mut self, limit: f64) -> usize {
+        let mut count = 0;
+        for f in 0..self.he.tri.len() {
+            if !self.he.face_alive[f] {
+                continue;
+            }
+            let worst = self.face_min_angle(f);
+            if worst >= limit {
+                continue;
+            }
+            let mut edges = [3 * f as u32, 3 * f as u32 + 1, 3 * f as u32 + 2];
+            edges.sort_by(|&x, &y| self.len(x).total_cmp(&self.len(y)));
+            self.collapse_floor = worst + 1e-3;
+            self.collapse_stretch = 5.0 / 3.0;
+            let mut done = false;
+            for h in edges {
+                if self.try_collapse(h) {
+                    count += 1;
+                    done = true;
+                    break;
+                }
+            }
+            self.collapse_floor = 10f64.to_radians();
+            self.collapse_stretch = SPLIT;
+            if done {
+                continue;
+            }
+            // A face whose corners all lie on feature lines (an ear at a rim): split its
+            // edge that crosses the patch so an inner vertex can take the angle.
+            let corners = self.he.tri[f];
+            if corners
+                .iter()
+                .all(|&v| !matches!(self.kind[v as usize], Kind::Interior(_)))
+            {
+                if let Some(h) = (0..3)
+                    .map(|i| 3 * f as u32 + i)
+                    .find(|&h| !self.he.is_feature(h))
+                {
+                    if self.split_edge(h).is_some() {
+                        count += 1;
+                    }
+                }
+            }
+        }
+        count
+    }
+
+    fn flip_sharp(&mut self, limit: f64) -> usize {
+        let n_he = self.he.tri.len() as u32 * 3;
+        let mut count = 0;
+        for h in 0..n_he {
+            let Some([a, b, c, d]) = self.flippable(h) else {
+                continue;
+            };
+            let p = |v: u32| self.he.pos[v as usize];
+            let old = min_angle([p(a), p(b), p(c)]).min(min_angle([p(b), p(a), p(d)]));
+            if old >= limit {
+                continue;
+            }
+            let new = min_angle([p(c), p(d), p(b)]).min(min_angle([p(d), p(c), p(a)]));
+            if new <= old {
+                continue;
+            }
+            let mut ring = std::mem::take(&mut self.buf);
+            self.edges_at(c, &mut ring);
+            let exists = ring.iter().any(|&e| self.other(e, c) == d);
+            let border_a = self.edges_at(a, &mut ring);
+            let low_a = ring.len() <= if border_a { 2 } else { 3 };
+            let border_b = self.edges_at(b, &mut ring);
+            let low_b = ring.len() <= if border_b { 2 } else { 3 };
+            self.buf = ring;
+            if exists || low_a || low_b || !self.flip_keeps_shape(h) {
+                continue;
+            }
+            self.he.flip(h);
+            count += 1;
+        }
+        self.flips += count;
+        count
+    }
+}
