@@ -71,11 +71,8 @@ pub fn add_flow_extensions(
             let off = dot(d, n);
             in_plane.push([d[0] - off * n[0], d[1] - off * n[1], d[2] - off * n[2]]);
             offsets.push(off);
-            mean_edge += dot(
-                sub(at(rim[(i + 1) % rim.len()]), at(v)),
-                sub(at(rim[(i + 1) % rim.len()]), at(v)),
-            )
-            .sqrt();
+            let edge = sub(at(rim[(i + 1) % rim.len()]), at(v));
+            mean_edge += dot(edge, edge).sqrt();
         }
         mean_edge /= rim.len() as f64;
         // Seen from the centre, the rim must turn one way all round (as the cap's will).

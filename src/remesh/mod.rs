@@ -72,6 +72,8 @@ pub enum RemeshError {
     NonManifold(u32, u32),
     #[error("the surface has no faces")]
     Empty,
+    #[error("the remeshed surface is not a valid mesh: {0}")]
+    Mesh(#[from] crate::mesh::MeshError),
     #[error("remeshing changed the topology ({what}: {before} before, {after} after); the result was discarded")]
     TopologyChanged {
         what: &'static str,
@@ -118,6 +120,7 @@ struct Remesher {
     reference: Reference,
     buf: Vec<u32>,
     buf2: Vec<u32>,
+    buf3: Vec<u32>,
     splits: usize,
     collapses: usize,
     flips: usize,
@@ -224,6 +227,7 @@ pub fn remesh(
         reference,
         buf: Vec::new(),
         buf2: Vec::new(),
+        buf3: Vec::new(),
         splits: 0,
         collapses: 0,
         flips: 0,
@@ -266,7 +270,7 @@ pub fn remesh(
         out
     };
     let positions = pos.iter().map(|p| p.map(|x| x as f32)).collect();
-    let mesh = Mesh::new(positions, tri).map_err(|_| RemeshError::Empty)?;
+    let mesh = Mesh::new(positions, tri)?;
     Ok(Remeshed {
         mesh,
         face_ids: ids,
@@ -541,15 +545,18 @@ impl Remesher {
         let d = if t != NONE { he.to(next(t)) } else { NONE };
         let mut ring_a = std::mem::take(&mut self.buf);
         let mut ring_b = std::mem::take(&mut self.buf2);
+        let mut ring_x = std::mem::take(&mut self.buf3);
         let border_a = self.edges_at(a, &mut ring_a);
         let border_b = self.edges_at(b, &mut ring_b);
         let result = (|| {
             if t != NONE && border_a && border_b {
                 return None;
             }
-            let na: Vec<u32> = ring_a.iter().map(|&e| self.other(e, a)).collect();
-            let nb: Vec<u32> = ring_b.iter().map(|&e| self.other(e, b)).collect();
-            let shared = na.iter().filter(|x| nb.contains(x)).count();
+            let na = ring_a.iter().map(|&e| self.other(e, a));
+            let shared = na
+                .clone()
+                .filter(|&x| ring_b.iter().any(|&e| self.other(e, b) == x))
+                .count();
             if shared != if t != NONE { 2 } else { 1 } {
                 return None;
             }
@@ -558,15 +565,15 @@ impl Remesher {
                 if x == NONE {
                     continue;
                 }
-                let mut ring = Vec::new();
-                let border = self.edges_at(x, &mut ring);
-                if ring.len() <= if border { 2 } else { 3 } {
+                let border = self.edges_at(x, &mut ring_x);
+                if ring_x.len() <= if border { 2 } else { 3 } {
                     return None;
                 }
             }
             // No edge from the merged vertex longer than the split limit.
             let limit = |v: u32| self.collapse_stretch * self.target(v, b);
-            for &x in na.iter().chain(nb.iter()) {
+            let nb = ring_b.iter().map(|&e| self.other(e, b));
+            for x in na.chain(nb) {
                 if x != a && x != b && dist(p, self.he.pos[x as usize]) > limit(x) {
                     return None;
                 }
@@ -604,6 +611,7 @@ impl Remesher {
         })();
         self.buf = ring_a;
         self.buf2 = ring_b;
+        self.buf3 = ring_x;
         result
     }
 

@@ -21,14 +21,14 @@ impl Remesher {
                     Kind::Rim(l) => {
                         // Midway along the line between the two rim neighbours.
                         self.edges_at(v, ring);
-                        let ends: Vec<u32> = ring
+                        let mut ends = ring
                             .iter()
                             .filter(|&&e| self.he.is_feature(e))
-                            .map(|&e| self.other(e, v))
-                            .collect();
-                        if ends.len() != 2 {
-                            return None;
-                        }
+                            .map(|&e| self.other(e, v));
+                        let ends = match (ends.next(), ends.next(), ends.next()) {
+                            (Some(u), Some(w), None) => [u, w],
+                            _ => return None,
+                        };
                         let line = &self.reference.lines[l as usize];
                         let s = line.between(self.arc_on(ends[0], l), self.arc_on(ends[1], l));
                         let (p, size) = line.eval(s);
