@@ -590,5 +590,48 @@ fn flow_extensions_run_along_the_normal_and_end_in_a_flat_cap() {
     assert_eq!(
         add_flow_extensions(&m, &p, 0.0, &[]).unwrap_err(),
         ExtendError::Length(0.0)
+    ); // A patch id the vessel does not have is an error, not a silent no-op.
+    let err = add_flow_extensions(&m, &p, 2.0, &[7]).unwrap_err();
+    assert!(
+        matches!(err, ExtendError::UnknownPatch { id: 7, .. }),
+        "{err}"
     );
+    assert!(err.to_string().contains("2 inlet"), "{err}");
+}
+
+#[test]
+fn the_narrowest_lumen_is_the_smallest_opposite_wall_distance() {
+    use destair::cfd::checks::{narrowest_lumen, opposite_wall_distance};
+    let thin = named_case("thin-vessel", &PhantomOptions::default()).unwrap();
+    let mut meshes = vec![
+        aneurysm(BorderEnds::Capped, 0.0, 0.0),
+        aneurysm(BorderEnds::Open, 25.0, 10.0),
+        thin.meshes[0].1.clone(),
+    ];
+    // Smoothed copies: the narrowest point moves off the staircase.
+    let m = meshes[0].clone();
+    let t = Topology::build(&m);
+    let (p, _) = destair::smooth::smooth(
+        &m,
+        &t,
+        &destair::smooth::Method::Laplace { lambda: 0.5 },
+        15,
+        &destair::weights::VertexWeights::uniform(m.n_vertices()),
+        &vec![false; m.n_vertices()],
+    );
+    let mut smoothed = m.clone();
+    smoothed.positions_mut().copy_from_slice(&p);
+    meshes.push(smoothed);
+    for m in &meshes {
+        let t = Topology::build(m);
+        let all = opposite_wall_distance(m, &t);
+        let brute = all
+            .iter()
+            .enumerate()
+            .filter(|(_, d)| d.is_finite())
+            .min_by(|a, b| a.1.total_cmp(b.1).then(a.0.cmp(&b.0)))
+            .map(|(v, &d)| (v, d));
+        assert!(brute.is_some());
+        assert_eq!(narrowest_lumen(m, &t), brute);
+    }
 }

@@ -306,3 +306,160 @@ fn patterns_select_meshes_and_naming_names_outputs() {
     assert!(case.join("case-001_tumor_smooth.ply").is_file());
     assert!(!case.join("case-001_trachea_smooth.ply").exists());
 }
+
+#[test]
+fn the_cfd_profile_runs_per_structure_in_a_cohort() {
+    use destair::phantom::marching_cubes::BorderEnds;
+    let tmp = tempfile::tempdir().unwrap();
+    let cases = tmp.path().join("cases");
+    let meta = destair::io::MeshMeta::default();
+    let put = |case: &str, name: &str, mesh: &destair::Mesh| {
+        let dir = cases.join(case);
+        std::fs::create_dir_all(&dir).unwrap();
+        destair::io::ply::write_ply(&dir.join(format!("{name}.ply")), mesh, &meta, &[]).unwrap();
+    };
+    put(
+        "a-straight",
+        "vessel",
+        &common::aneurysm(BorderEnds::Capped, 0.0, 0.0),
+    );
+    put(
+        "b-turned",
+        "vessel",
+        &common::aneurysm(BorderEnds::Capped, 30.0, 20.0),
+    );
+    put(
+        "c-open",
+        "vessel_open",
+        &common::aneurysm(BorderEnds::Open, 0.0, 0.0),
+    );
+    // A blob has no ends: the cfd profile refuses it, and only its case fails.
+    put("d-blob", "vessel", &common::icosphere(3, 5.0));
+    let config = tmp.path().join("cfd.toml");
+    std::fs::write(
+        &config,
+        r#"
+[input]
+roots = ["cases"]
+case_depth = 1
+[output]
+root = "out"
+[defaults]
+method = "hc"
+iterations = 10
+[[structure]]
+pattern = "vessel*"
+profile = "cfd"
+edge_mm = 0.4
+expect_patches = 3
+[[structure]]
+pattern = "vessel_open"
+close_open_ends = true
+"#,
+    )
+    .unwrap();
+    let run = destair(&["run", config.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(3), "{err}");
+    assert!(
+        err.contains("d-blob") && err.contains("no caps and no open ends"),
+        "{err}"
+    );
+    let out = tmp.path().join("out");
+    let report = |case: &str| -> serde_json::Value {
+        serde_json::from_slice(&std::fs::read(out.join(case).join("report.json")).unwrap()).unwrap()
+    };
+    let mut areas = Vec::new();
+    for (case, name) in [
+        ("a-straight", "vessel"),
+        ("b-turned", "vessel"),
+        ("c-open", "vessel_open"),
+    ] {
+        let r = report(case);
+        assert_eq!(r["status"], "ok", "{r}");
+        let s = &r["structures"][0];
+        let cfd = &s["cfd"];
+        let patches = cfd["patches"]["patches"].as_array().unwrap();
+        let ids: Vec<u64> = patches.iter().map(|p| p["id"].as_u64().unwrap()).collect();
+        assert_eq!(ids, [2, 3, 4], "{case}");
+        assert_eq!(patches[0]["name"], "inlet");
+        let want = if case == "c-open" {
+            "closed_end"
+        } else {
+            "cap"
+        };
+        for p in patches {
+            assert_eq!(p["kind"], want, "{case}");
+            assert!(p["planarity_mm"].as_f64().unwrap() < 1e-5, "{case}: {p}");
+        }
+        let checks = &cfd["checks"];
+        assert_eq!(checks["border_edges"], 0, "{case}");
+        assert_eq!(checks["self_intersections"], 0, "{case}");
+        assert_eq!(checks["degenerate_triangles"], 0, "{case}");
+        assert!(checks["signed_volume_mm3"].as_f64().unwrap() > 0.0);
+        assert!(
+            checks["quality"]["min_angle_deg"].as_f64().unwrap() >= 25.0,
+            "{case}: {checks}"
+        );
+        assert!(
+            checks["edges"]["within_20_percent"].as_f64().unwrap() >= 0.9,
+            "{case}: {checks}"
+        );
+        assert!(
+            cfd["remeshed"]["hausdorff_mm"].as_f64().unwrap() < 0.2,
+            "{case}: {cfd}"
+        );
+        // The files a mesher takes, listed as outputs so reruns and prunes know them.
+        let outputs: Vec<&str> = s["outputs"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|o| o.as_str().unwrap())
+            .collect();
+        for suffix in [
+            ".ply",
+            "_solids.stl",
+            "_wall.stl",
+            "_inlet.stl",
+            "_outlet_2.stl",
+            ".vtp",
+            "_patches.json",
+        ] {
+            let file = format!("{name}{suffix}");
+            assert!(outputs.contains(&file.as_str()), "{case}: {outputs:?}");
+            assert!(out.join(case).join(&file).is_file(), "{case}: {file}");
+        }
+        let md = std::fs::read_to_string(out.join(case).join("report.md")).unwrap();
+        assert!(
+            md.contains("| 2 | inlet |") && md.contains("within 20 %"),
+            "{md}"
+        );
+        if case != "c-open" {
+            areas.push(
+                patches
+                    .iter()
+                    .map(|p| p["area_mm2"].as_f64().unwrap())
+                    .collect::<Vec<_>>(),
+            );
+        }
+    }
+    // The same vessel turned gets the same patches.
+    for (a, b) in areas[0].iter().zip(&areas[1]) {
+        assert!((a - b).abs() < 0.02 * a, "{areas:?}");
+    }
+    let blob = report("d-blob");
+    assert_eq!(blob["status"], "failed");
+    assert!(!out.join("d-blob/vessel.ply").exists());
+    let summary = std::fs::read_to_string(out.join("summary.csv")).unwrap();
+    let header = summary.lines().next().unwrap();
+    assert!(
+        header.contains("patches,min_angle_deg,edges_within_20_percent"),
+        "{header}"
+    );
+    assert!(summary.contains("\"2 inlet "), "{summary}");
+    // A rerun does nothing.
+    let before = snapshot(&out);
+    let rerun = destair(&["run", config.to_str().unwrap()]);
+    assert!(String::from_utf8_lossy(&rerun.stderr).contains("4 already done"));
+    assert_eq!(snapshot(&out), before);
+}

@@ -433,6 +433,25 @@ fn distances_match_brute_force_on_random_meshes() {
                 (fast - brute).abs() <= 1e-6 * brute.max(1e-30),
                 "round {round}: {fast} vs {brute}"
             );
+            // A bounded search finds the same triangle when it lies within the bound (also
+            // exactly at it), and nothing when it does not; with a filter, the nearest kept.
+            let nearest = gb.nearest(q).unwrap();
+            let within = gb.nearest_matching_within(q, nearest.distance, |_| true);
+            assert_eq!(within.map(|n| n.triangle), Some(nearest.triangle));
+            let short = gb.nearest_matching_within(q, 0.5 * nearest.distance, |_| true);
+            assert!(short.is_none() || nearest.distance == 0.0);
+            let even = |f: u32| f % 2 == 0;
+            let pos = b.positions();
+            let brute_even = b
+                .triangles()
+                .iter()
+                .enumerate()
+                .filter(|(f, _)| even(*f as u32))
+                .map(|(_, t)| point_triangle_distance(q, t.map(|v| pos[v as usize])))
+                .fold(f64::INFINITY, f64::min);
+            let kept = gb.nearest_matching_within(q, f64::INFINITY, even).unwrap();
+            assert!(even(kept.triangle));
+            assert!((kept.distance - brute_even).abs() <= 1e-6 * brute_even.max(1e-30));
         }
         let d = surface_distance(&a, &ga, &b, &gb);
         let ab: Vec<f64> = a

@@ -53,45 +53,88 @@ pub struct Narrowing {
     pub at_mm: [f32; 3],
 }
 
+/// What finding a vertex's opposite wall needs: the faces in a grid, face and vertex normals.
+struct OppositeWall<'a> {
+    mesh: &'a Mesh,
+    grid: crate::spatial::TriangleGrid,
+    faces: Vec<[f32; 3]>,
+    normals: Vec<[f32; 3]>,
+    /// -1 when the faces' normals point out of the fluid (as they should), else 1.
+    inward: f64,
+}
+
+impl<'a> OppositeWall<'a> {
+    fn new(mesh: &'a Mesh, topology: &Topology) -> OppositeWall<'a> {
+        use crate::mesh::geometry::{face_normals, vertex_normals};
+        OppositeWall {
+            mesh,
+            grid: crate::spatial::TriangleGrid::build(mesh),
+            faces: face_normals(mesh),
+            normals: vertex_normals(mesh, topology),
+            inward: if signed_volume(mesh) < 0.0 { 1.0 } else { -1.0 },
+        }
+    }
+
+    /// The distance from vertex `v` to its opposite wall if that is at most `within` (mm).
+    fn distance(&self, v: usize, within: f64) -> Option<f64> {
+        let n = self.normals[v].map(|x| self.inward * x as f64);
+        if n == [0.0; 3] {
+            return None;
+        }
+        let p = self.mesh.positions()[v];
+        let x = p.map(f64::from);
+        let facing_back = |f: u32| {
+            let m = self.faces[f as usize];
+            // n is inward; a face of the opposite wall has its outward normal along n.
+            let d = n[0] * m[0] as f64 + n[1] * m[1] as f64 + n[2] * m[2] as f64;
+            if d <= 0.5 {
+                return false;
+            }
+            let t = self.grid.triangle(f);
+            t.iter().any(|c| {
+                (c[0] as f64 - x[0]) * n[0]
+                    + (c[1] as f64 - x[1]) * n[1]
+                    + (c[2] as f64 - x[2]) * n[2]
+                    > 0.0
+            })
+        };
+        self.grid
+            .nearest_matching_within(p, within, facing_back)
+            .map(|near| near.distance)
+    }
+}
+
 /// Distance (mm) from each vertex to the opposite wall: the nearest face that faces back
 /// (its normal against the vertex normal by more than 60 degrees) on the inner side of the
 /// vertex. Infinite where there is none. Neighbouring faces on the same side (a tube's wall
 /// along its axis, a staircase's steps) do not count, so on a tube this is its diameter.
 pub fn opposite_wall_distance(mesh: &Mesh, topology: &Topology) -> Vec<f64> {
-    use crate::mesh::geometry::{face_normals, vertex_normals};
     use rayon::prelude::*;
-    let grid = crate::spatial::TriangleGrid::build(mesh);
-    let faces = face_normals(mesh);
-    let normals = vertex_normals(mesh, topology);
-    let inward = if signed_volume(mesh) < 0.0 { 1.0 } else { -1.0 };
-    let p = mesh.positions();
+    let wall = OppositeWall::new(mesh, topology);
     (0..mesh.n_vertices())
         .into_par_iter()
-        .map(|v| {
-            let n = normals[v].map(|x| inward * x as f64);
-            if n == [0.0; 3] {
-                return f64::INFINITY;
-            }
-            let x = p[v].map(f64::from);
-            let facing_back = |f: u32| {
-                let m = faces[f as usize];
-                // n is inward; a face of the opposite wall has its outward normal along n.
-                let d = n[0] * m[0] as f64 + n[1] * m[1] as f64 + n[2] * m[2] as f64;
-                if d <= 0.5 {
-                    return false;
-                }
-                let t = grid.triangle(f);
-                t.iter().any(|c| {
-                    (c[0] as f64 - x[0]) * n[0]
-                        + (c[1] as f64 - x[1]) * n[1]
-                        + (c[2] as f64 - x[2]) * n[2]
-                        > 0.0
-                })
-            };
-            grid.nearest_matching(p[v], facing_back)
-                .map_or(f64::INFINITY, |near| near.distance)
-        })
+        .map(|v| wall.distance(v, f64::INFINITY).unwrap_or(f64::INFINITY))
         .collect()
+}
+
+/// The vertex with the smallest [`opposite_wall_distance`] (the lowest index among equals) and
+/// that distance (mm); `None` when no vertex has an opposite wall. A sample of the vertices
+/// bounds the search for the others, so wide parts of the vessel cost little.
+pub fn narrowest_lumen(mesh: &Mesh, topology: &Topology) -> Option<(usize, f64)> {
+    use rayon::prelude::*;
+    const SAMPLE_EVERY: usize = 16;
+    let wall = OppositeWall::new(mesh, topology);
+    let n = mesh.n_vertices();
+    let bound = (0..n)
+        .into_par_iter()
+        .step_by(SAMPLE_EVERY)
+        .filter_map(|v| wall.distance(v, f64::INFINITY))
+        .reduce(|| f64::INFINITY, f64::min);
+    // Every vertex at or below the bound is found, with its exact distance.
+    (0..n)
+        .into_par_iter()
+        .filter_map(|v| wall.distance(v, bound).map(|d| (v, d)))
+        .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))
 }
 
 /// The narrowest lumen of `after` against the narrowest of `before` (the same vertices,
@@ -99,15 +142,8 @@ pub fn opposite_wall_distance(mesh: &Mesh, topology: &Topology) -> Vec<f64> {
 /// so the vessel's narrowest point is compared instead. `None` when no vertex has an opposite
 /// wall in both.
 pub fn narrowing(before: &Mesh, after: &Mesh, topology: &Topology) -> Option<Narrowing> {
-    let narrowest = |d: &[f64]| {
-        d.iter()
-            .enumerate()
-            .filter(|(_, x)| x.is_finite())
-            .min_by(|x, y| x.1.total_cmp(y.1))
-            .map(|(v, &x)| (v, x))
-    };
-    let (_, b) = narrowest(&opposite_wall_distance(before, topology))?;
-    let (v, a) = narrowest(&opposite_wall_distance(after, topology))?;
+    let (_, b) = narrowest_lumen(before, topology)?;
+    let (v, a) = narrowest_lumen(after, topology)?;
     (b > 0.0).then(|| Narrowing {
         ratio: a / b,
         before_mm: b,

@@ -21,6 +21,8 @@ pub enum ExtendError {
         "the rim of patch {0} folds over itself seen from its centre: the extension would fold"
     )]
     NotStarShaped(String),
+    #[error("no patch has id {id} (the patches are {known}); ids start at 2 with the inlet")]
+    UnknownPatch { id: u32, known: String },
     #[error("the extended surface would have more vertices than indices can address")]
     TooLarge,
     #[error("the extended surface is not a valid mesh: {0}")]
@@ -38,6 +40,20 @@ pub fn add_flow_extensions(
 ) -> Result<(Mesh, Patches), ExtendError> {
     if !(diameters.is_finite() && diameters > 0.0) {
         return Err(ExtendError::Length(diameters));
+    }
+    if let Some(&id) = which
+        .iter()
+        .find(|&&id| !patches.patches.iter().any(|p| p.id == id))
+    {
+        let known: Vec<String> = patches
+            .patches
+            .iter()
+            .map(|p| format!("{} {}", p.id, p.name))
+            .collect();
+        return Err(ExtendError::UnknownPatch {
+            id,
+            known: known.join(", "),
+        });
     }
     let chosen = |id: u32| which.is_empty() || which.contains(&id);
     let mut positions = mesh.positions().to_vec();

@@ -14,8 +14,11 @@ pub mod profile;
 pub use checks::{check_surface, SurfaceChecks};
 pub use close::{close_open_ends, CloseError};
 pub use extend::{add_flow_extensions, ExtendError};
-pub use outputs::write_patch_files;
+pub use outputs::{encode_patch_files, write_patch_files};
 pub use patches::{
     find_patches, remeasure_patches, Inlet, Patch, PatchError, PatchKind, Patches, WALL_ID,
 };
-pub use profile::{finish_surface, patch_vertices, CfdError, CfdParams, CfdSurface};
+pub use profile::{
+    finish_surface, patch_vertices, CfdError, CfdOptions, CfdParams, CfdProfile, CfdSurface,
+    RemeshSummary,
+};

@@ -5,7 +5,7 @@
 //! Open ends that were not closed have no faces and appear only in the JSON.
 
 use super::patches::{Patches, WALL_ID};
-use crate::io::vtp::{write_vtp, VtpArray};
+use crate::io::vtp::{encode_vtp, VtpArray};
 use crate::io::{MeshMeta, WriteError};
 use crate::mesh::Mesh;
 use std::path::{Path, PathBuf};
@@ -22,8 +22,8 @@ pub fn planned_files(dir: &Path, stem: &str, patches: &Patches) -> Vec<PathBuf> 
     names.into_iter().map(|n| dir.join(n)).collect()
 }
 
-/// Writes the patch files of `mesh` (whose patches are `patches`) into `dir`; returns their
-/// paths, in the order above.
+/// Writes the patch files of `mesh` (whose patches are `patches`) into `dir`, each
+/// atomically; returns their paths, in the order above.
 pub fn write_patch_files(
     dir: &Path,
     stem: &str,
@@ -31,6 +31,24 @@ pub fn write_patch_files(
     meta: &MeshMeta,
     patches: &Patches,
 ) -> Result<Vec<PathBuf>, WriteError> {
+    let files = encode_patch_files(stem, mesh, meta, patches)?;
+    let mut written = Vec::with_capacity(files.len());
+    for (name, bytes) in files {
+        let path = dir.join(name);
+        crate::io::write_bytes_atomically(&path, &bytes)?;
+        written.push(path);
+    }
+    Ok(written)
+}
+
+/// The patch files of `mesh` in memory: (file name, bytes) in the order of
+/// [`planned_files`], for a writer that writes a case's outputs together.
+pub fn encode_patch_files(
+    stem: &str,
+    mesh: &Mesh,
+    meta: &MeshMeta,
+    patches: &Patches,
+) -> Result<Vec<(String, Vec<u8>)>, WriteError> {
     let n = mesh.n_triangles();
     if patches.face_ids.len() != n
         || patches
@@ -39,49 +57,44 @@ pub fn write_patch_files(
             .flat_map(|p| &p.faces)
             .any(|&f| f as usize >= n)
     {
-        return Err(WriteError::Io {
-            path: dir.to_path_buf(),
-            source: std::io::Error::other("the patches were not found on this mesh"),
+        return Err(WriteError::InvalidArray {
+            name: "CellEntityIds".into(),
+            message: "the patches were not found on this mesh".into(),
         });
     }
-    let mut written = Vec::new();
-    let wall: Vec<u32> = (0..mesh.n_triangles() as u32)
+    let mut files = Vec::new();
+    let wall: Vec<u32> = (0..n as u32)
         .filter(|&f| patches.face_ids.get(f as usize) == Some(&WALL_ID))
         .collect();
     let mut solids: Vec<(&str, &[u32])> = vec![("wall", &wall)];
     for p in patches.patches.iter().filter(|p| !p.faces.is_empty()) {
         solids.push((p.name.as_str(), &p.faces));
     }
-    let path = dir.join(format!("{stem}_solids.stl"));
-    crate::io::stl::write_stl_solids(&path, mesh, meta, &solids)?;
-    written.push(path);
+    files.push((
+        format!("{stem}_solids.stl"),
+        crate::io::stl::encode_stl_solids(mesh, meta, &solids),
+    ));
     for (name, faces) in &solids {
-        let path = dir.join(format!("{stem}_{name}.stl"));
-        crate::io::stl::write_stl(&path, &mesh.select_faces(faces), meta)?;
-        written.push(path);
+        files.push((
+            format!("{stem}_{name}.stl"),
+            crate::io::stl::encode_stl(&mesh.select_faces(faces), meta),
+        ));
     }
     let ids: Vec<i32> = patches.face_ids.iter().map(|&id| id as i32).collect();
-    let path = dir.join(format!("{stem}.vtp"));
-    write_vtp(
-        &path,
-        mesh,
-        meta,
-        &[],
-        &[VtpArray::Int32("CellEntityIds", &ids)],
-    )?;
-    written.push(path);
-    let path = dir.join(format!("{stem}_patches.json"));
+    files.push((
+        format!("{stem}.vtp"),
+        encode_vtp(mesh, meta, &[], &[VtpArray::Int32("CellEntityIds", &ids)])?,
+    ));
     let table = serde_json::json!({
         "space": meta.space(),
         "cell_entity_ids": "wall 1, then each patch's id",
         "patches": patches.patches,
         "wall_faces": patches.wall_faces,
     });
-    let text = serde_json::to_vec_pretty(&table).map_err(|e| WriteError::Io {
-        path: path.clone(),
-        source: std::io::Error::other(e),
+    let text = serde_json::to_vec_pretty(&table).map_err(|e| WriteError::InvalidArray {
+        name: "patches".into(),
+        message: e.to_string(),
     })?;
-    crate::io::write_bytes_atomically(&path, &text)?;
-    written.push(path);
-    Ok(written)
+    files.push((format!("{stem}_patches.json"), text));
+    Ok(files)
 }

@@ -6,14 +6,19 @@
 use super::checks::{check_surface, SurfaceChecks};
 use super::close::{close_open_ends, CloseError};
 use super::extend::{add_flow_extensions, ExtendError};
-use super::patches::{remeasure_patches, PatchKind, Patches};
+use super::patches::{remeasure_patches, Inlet, PatchKind, Patches};
 use crate::mesh::{Mesh, Topology};
-use crate::remesh::{remesh, RemeshError, RemeshParams};
+use crate::metrics::distance::surface_distance;
+use crate::remesh::{remesh, EdgeTarget, RemeshError, RemeshParams};
+use crate::spatial::TriangleGrid;
 use serde::Serialize;
 use thiserror::Error;
 
+/// Longest flow extension accepted (equivalent diameters): beyond it a typo, not a choice.
+pub const MAX_FLOW_EXTENSION: f64 = 100.0;
+
 /// What the profile does after smoothing.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CfdParams {
     /// Flow extensions of this many equivalent diameters (none when `None`).
     pub flow_extension: Option<f64>,
@@ -23,6 +28,85 @@ pub struct CfdParams {
     pub close_open_ends: bool,
     /// Remesh to this target (no remeshing when `None`).
     pub remesh: Option<RemeshParams>,
+}
+
+/// The cfd profile of one structure, as a cohort config or the command line gives it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CfdProfile {
+    pub inlet: Inlet,
+    /// The number of patches the vessel must have; another count fails it.
+    pub expect_patches: Option<usize>,
+    #[serde(flatten)]
+    pub finish: CfdParams,
+}
+
+/// The profile's settings as given, before they are checked (`edge_mm` and `edge_per_radius`
+/// exclude each other).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct CfdOptions {
+    pub inlet: Option<Inlet>,
+    pub expect_patches: Option<usize>,
+    /// Remesh to this edge length (mm).
+    pub edge_mm: Option<f64>,
+    /// Remesh to this multiple of the local vessel radius.
+    pub edge_per_radius: Option<f64>,
+    /// Flow extensions of this many equivalent diameters.
+    pub flow_extension: Option<f64>,
+    /// Patch ids that get an extension (all when empty).
+    pub extend: Vec<u32>,
+    pub close_open_ends: bool,
+}
+
+impl CfdProfile {
+    /// Checks `options`; the message names the setting (by its config key) that is wrong.
+    pub fn new(options: CfdOptions) -> Result<CfdProfile, String> {
+        let positive = |name: &str, v: Option<f64>| match v {
+            Some(x) if !(x.is_finite() && x > 0.0) => {
+                Err(format!("{name} = {x} must be a positive number"))
+            }
+            _ => Ok(()),
+        };
+        positive("edge_mm", options.edge_mm)?;
+        positive("edge_per_radius", options.edge_per_radius)?;
+        positive("flow_extension", options.flow_extension)?;
+        if let Some(k) = options.flow_extension.filter(|&k| k > MAX_FLOW_EXTENSION) {
+            return Err(format!(
+                "flow_extension = {k} diameters is longer than {MAX_FLOW_EXTENSION}"
+            ));
+        }
+        let edge = match (options.edge_mm, options.edge_per_radius) {
+            (Some(_), Some(_)) => {
+                return Err("edge_mm and edge_per_radius exclude each other: give one".into())
+            }
+            (Some(mm), None) => Some(EdgeTarget::Mm(mm)),
+            (None, Some(k)) => Some(EdgeTarget::PerRadius(k)),
+            (None, None) => None,
+        };
+        if !options.extend.is_empty() && options.flow_extension.is_none() {
+            return Err("extend names patches for flow extensions: set flow_extension too".into());
+        }
+        if let Some(&id) = options.extend.iter().find(|&&id| id < 2) {
+            return Err(format!(
+                "extend: {id} is not a patch id (the wall is 1, patches start at 2)"
+            ));
+        }
+        if options.expect_patches == Some(0) {
+            return Err("expect_patches = 0: a vessel has at least one end".into());
+        }
+        Ok(CfdProfile {
+            inlet: options.inlet.unwrap_or(Inlet::Largest),
+            expect_patches: options.expect_patches,
+            finish: CfdParams {
+                flow_extension: options.flow_extension,
+                extend_patches: options.extend,
+                close_open_ends: options.close_open_ends,
+                remesh: edge.map(|edge| RemeshParams {
+                    edge,
+                    ..RemeshParams::uniform(1.0)
+                }),
+            },
+        })
+    }
 }
 
 /// Why a surface was not made ready for a solver.
@@ -38,13 +122,19 @@ pub enum CfdError {
     Checks(Vec<String>),
 }
 
-/// What remeshing did.
+/// What remeshing did, and how far the remeshed surface lies from the one it remeshed.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct RemeshSummary {
     pub splits: usize,
     pub collapses: usize,
     pub flips: usize,
-    /// Wall-clock time (s).
+    /// Hausdorff distance between the surface before and after remeshing (mm).
+    pub hausdorff_mm: f64,
+    /// Mean vertex-to-surface distance between them, both ways (mm).
+    pub mean_distance_mm: f64,
+    /// Wall-clock time of the remeshing alone (s); not serialized, as reports are
+    /// deterministic.
+    #[serde(skip)]
     pub seconds: f64,
 }
 
@@ -98,11 +188,20 @@ pub fn finish_surface(
         Some(rp) => {
             let started = std::time::Instant::now();
             let r = remesh(&mesh, &patches.face_ids, rp)?;
+            let seconds = started.elapsed().as_secs_f64();
+            let distance = surface_distance(
+                &r.mesh,
+                &TriangleGrid::build(&r.mesh),
+                &mesh,
+                &TriangleGrid::build(&mesh),
+            );
             let summary = RemeshSummary {
                 splits: r.splits,
                 collapses: r.collapses,
                 flips: r.flips,
-                seconds: started.elapsed().as_secs_f64(),
+                hausdorff_mm: distance.hausdorff_mm,
+                mean_distance_mm: distance.mean_mm,
+                seconds,
             };
             let topology = Topology::build(&r.mesh);
             let again = remeasure_patches(&r.mesh, &topology, r.face_ids, &patches);

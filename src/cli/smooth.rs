@@ -173,16 +173,20 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         ))
         .into());
     }
-    let remesh_target = match (edge_mm, edge_per_radius) {
-        (Some(x), _) | (_, Some(x)) if !(x.is_finite() && x > 0.0) => {
-            return Err(UsageError(format!(
-                "--edge-mm / --edge-per-radius must be a positive number, not {x}"
-            ))
-            .into())
-        }
-        (Some(mm), _) => Some(destair::remesh::EdgeTarget::Mm(mm)),
-        (_, Some(k)) => Some(destair::remesh::EdgeTarget::PerRadius(k)),
-        _ => None,
+    let cfd = match profile {
+        Some(Profile::Cfd) => Some(
+            destair::cfd::CfdProfile::new(destair::cfd::CfdOptions {
+                inlet: Some(inlet),
+                expect_patches,
+                edge_mm,
+                edge_per_radius,
+                flow_extension,
+                extend,
+                close_open_ends,
+            })
+            .map_err(|m| UsageError(format!("--profile cfd: {m}")))?,
+        ),
+        None => None,
     };
     let loaded = read_input(&input, &ReadOptions::default())?;
     let mesh = &loaded.mesh;
@@ -191,10 +195,11 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         .file_stem()
         .map_or_else(|| "vessel".into(), |s| s.to_string_lossy().into_owned());
     // The cfd profile's patches, found before smoothing so the smoother can hold them.
-    let patches = match profile {
-        Some(Profile::Cfd) => {
-            let found = destair::cfd::find_patches(mesh, &topology, inlet, expect_patches)
-                .map_err(|e| Rejected(format!("{}: {e}; nothing written", input.display())))?;
+    let patches = match &cfd {
+        Some(profile) => {
+            let found =
+                destair::cfd::find_patches(mesh, &topology, profile.inlet, profile.expect_patches)
+                    .map_err(|e| Rejected(format!("{}: {e}; nothing written", input.display())))?;
             for path in destair::cfd::outputs::planned_files(folder, &stem, &found) {
                 refuse_overwriting_inputs(&path, &inputs, force)?;
             }
@@ -284,23 +289,14 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     .map_err(|m| Rejected(format!("{}: {m}; nothing written", input.display())))?;
     let mut smoothed = mesh.clone();
     smoothed.positions_mut().copy_from_slice(&positions);
-    let cfd = match &patches {
-        Some(p) => {
-            let params = destair::cfd::CfdParams {
-                flow_extension,
-                extend_patches: extend.clone(),
-                close_open_ends,
-                remesh: remesh_target.map(|edge| destair::remesh::RemeshParams {
-                    edge,
-                    ..destair::remesh::RemeshParams::uniform(1.0)
-                }),
-            };
-            let done = destair::cfd::finish_surface(mesh, &smoothed, p, &params)
+    let cfd = match (&patches, &cfd) {
+        (Some(p), Some(profile)) => {
+            let done = destair::cfd::finish_surface(mesh, &smoothed, p, &profile.finish)
                 .map_err(|e| Rejected(format!("{}: {e}; nothing written", input.display())))?;
             smoothed = done.mesh.clone();
             Some(done)
         }
-        None => None,
+        _ => None,
     };
     let lengths: Vec<f32> = destair::metrics::displacements(mesh.positions(), &positions)
         .into_iter()
@@ -349,13 +345,14 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         );
         if let (Some(e), Some(r)) = (&done.checks.edges, &done.remeshed) {
             print!(
-                "; remeshed in {:.2} s: {} triangles, edges {:.3}-{:.3} mm (mean {:.3}), {:.1} % within 20 % of the target",
+                "; remeshed in {:.2} s: {} triangles, edges {:.3}-{:.3} mm (mean {:.3}), {:.1} % within 20 % of the target, surface moved {:.4} mm at most",
                 r.seconds,
                 done.mesh.n_triangles(),
                 e.min_mm,
                 e.max_mm,
                 e.mean_mm,
-                100.0 * e.within_20_percent
+                100.0 * e.within_20_percent,
+                r.hausdorff_mm
             );
         }
         println!();

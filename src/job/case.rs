@@ -10,7 +10,7 @@ use super::label_map::{
 use super::plan::{Plan, StructureSettings};
 use crate::io::{decode_mesh, extension, with_file_bytes, LoadedMesh, OutputFormat, ReadOptions};
 use crate::mesh::{Mesh, Topology};
-use crate::report::case::{CaseReport, InputInfo, StructureReport, SCHEMA_VERSION};
+use crate::report::case::{CaseReport, CfdReport, InputInfo, StructureReport, SCHEMA_VERSION};
 use crate::report::compare::compare_prepared;
 use crate::report::inspect::context_summary;
 use crate::smooth::{boundary_vertices, smooth};
@@ -269,12 +269,25 @@ pub fn process_case(plan: &Plan, case: LoadedCase) -> CaseOutput {
             outputs: Vec::new(),
             warnings: Vec::new(),
             source: f.source.clone(),
+            cfd: None,
         };
         let stem = plan.output_stem(&case.input.id, &f.structure);
         match process_structure(plan, f, &stem, &settings, &by_name, &mut grids, &mut report) {
             Ok(outputs) => {
-                report.outputs = outputs.iter().map(|(n, _)| n.clone()).collect();
-                files.extend(outputs);
+                // Two structures must not write one file (`vessel` with the cfd profile writes
+                // vessel_wall.stl, as a structure `vessel_wall` would).
+                let taken = outputs
+                    .iter()
+                    .find(|(n, _)| files.iter().any(|(m, _): &(String, Vec<u8>)| m == n));
+                if let Some((name, _)) = taken {
+                    report.status = "failed".into();
+                    report.error = Some(format!(
+                        "its output {name} is also an output of another structure of this case; rename one (or change [output] naming)"
+                    ));
+                } else {
+                    report.outputs = outputs.iter().map(|(n, _)| n.clone()).collect();
+                    files.extend(outputs);
+                }
             }
             Err(e) => {
                 report.status = "failed".into();
@@ -382,9 +395,32 @@ fn process_structure(
     }
     if settings.skip {
         report.status = "skipped".into();
+        if settings.cfd.is_some() {
+            report
+                .warnings
+                .push("skip = true: copied unchanged, without the cfd profile".into());
+        }
         return encode(plan, stem, &in_world(&place, mesh), loaded, &[]);
     }
     let topology = Topology::build(mesh);
+    // The cfd profile's patches, found before smoothing so the smoother holds them, in world
+    // mm (the inlet point, the patch table and the files are in world coordinates).
+    let cfd = match &settings.cfd {
+        Some(profile) => {
+            let world = in_world(&place, mesh);
+            let moved = matches!(world, std::borrow::Cow::Owned(_));
+            let world_topology = moved.then(|| Topology::build(&world));
+            let patches = crate::cfd::find_patches(
+                &world,
+                world_topology.as_ref().unwrap_or(&topology),
+                profile.inlet,
+                profile.expect_patches,
+            )
+            .map_err(|e| format!("cfd profile: {e}"))?;
+            Some((profile, world, patches))
+        }
+        None => None,
+    };
     let header = file
         .source
         .as_ref()
@@ -449,11 +485,17 @@ fn process_structure(
     let smoother = file.binary.is_none() || settings.method_configured;
     let (positions, weights) = if smoother {
         let ctx = context_weights(mesh, &topology, &context_params, &refs);
-        let fixed = if settings.move_boundary {
+        let mut fixed = if settings.move_boundary {
             vec![false; mesh.n_vertices()]
         } else {
             boundary_vertices(&topology)
         };
+        if let Some((_, _, patches)) = &cfd {
+            let held = crate::cfd::patch_vertices(patches, mesh.n_vertices());
+            for (f, h) in fixed.iter_mut().zip(held) {
+                *f |= h;
+            }
+        }
         let (positions, stats) = smooth(
             mesh,
             &topology,
@@ -512,6 +554,30 @@ fn process_structure(
         .into_iter()
         .map(|d| d as f32)
         .collect();
+    if let Some((profile, world, patches)) = &cfd {
+        let smoothed_world = in_world(&place, &smoothed);
+        let done = crate::cfd::finish_surface(world, &smoothed_world, patches, &profile.finish)
+            .map_err(|e| format!("cfd profile: {e}"))?;
+        if plan.annotate {
+            report.warnings.push(
+                "annotations are not written for the cfd profile's outputs (the surface is new); CellEntityIds are in the .vtp".into(),
+            );
+        }
+        let mut out = encode(plan, stem, &done.mesh, loaded, &[])?;
+        out.extend(
+            crate::cfd::encode_patch_files(stem, &done.mesh, &loaded.meta, &done.patches)
+                .map_err(|e| e.to_string())?,
+        );
+        report.cfd = Some(CfdReport {
+            n_vertices: done.mesh.n_vertices(),
+            n_triangles: done.mesh.n_triangles(),
+            patches: done.patches,
+            checks: done.checks,
+            remeshed: done.remeshed,
+        });
+        report.status = "ok".into();
+        return Ok(out);
+    }
     // Annotations: the smoothing weights when a smoother ran, and the displacement.
     let mut props: Vec<(&str, &[f32])> = Vec::new();
     if plan.annotate {

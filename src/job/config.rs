@@ -141,6 +141,40 @@ pub struct Settings {
     pub noise: Option<String>,
     /// Label-map structures: "protect" (default) or "off" for parts one voxel thick.
     pub thin: Option<String>,
+    /// "cfd": ready the structure for a flow solver (patches held while smoothing, then
+    /// extended, closed, remeshed and checked; patch files written); "none" (default).
+    pub profile: Option<String>,
+    /// cfd profile: remesh to this edge length (mm).
+    pub edge_mm: Option<f64>,
+    /// cfd profile: remesh to this multiple of the local vessel radius.
+    pub edge_per_radius: Option<f64>,
+    /// cfd profile: flow extensions of this many equivalent diameters.
+    pub flow_extension: Option<f64>,
+    /// cfd profile: patch ids that get a flow extension (default all).
+    pub extend: Option<Vec<u32>>,
+    /// cfd profile: close open ends with flat caps.
+    pub close_open_ends: Option<bool>,
+    /// cfd profile: "largest", a patch index by decreasing area, or [x, y, z] (mm).
+    pub inlet: Option<toml::Value>,
+    /// cfd profile: the number of patches each matching structure has; another count fails.
+    pub expect_patches: Option<usize>,
+}
+
+impl Settings {
+    /// The cfd profile's keys that this table sets, for the check that some table turns the
+    /// profile on.
+    pub fn cfd_keys(&self) -> Vec<&'static str> {
+        let set = [
+            ("edge_mm", self.edge_mm.is_some()),
+            ("edge_per_radius", self.edge_per_radius.is_some()),
+            ("flow_extension", self.flow_extension.is_some()),
+            ("extend", self.extend.is_some()),
+            ("close_open_ends", self.close_open_ends.is_some()),
+            ("inlet", self.inlet.is_some()),
+            ("expect_patches", self.expect_patches.is_some()),
+        ];
+        set.iter().filter(|(_, on)| *on).map(|(k, _)| *k).collect()
+    }
 }
 
 /// One `[[structure]]` table: settings for structures whose name matches `pattern`.

@@ -3,6 +3,7 @@
 //! consumes it and never sees raw TOML.
 
 use super::config::{Config, ConfigError, Settings};
+use crate::cfd::{CfdOptions, CfdProfile, Inlet};
 use crate::extract::constrained::{LabelSmoothing, Noise, Surface, Thin};
 use crate::io::{OutputFormat, ReadMode};
 use crate::smooth::{MethodKind, MethodParams};
@@ -40,6 +41,8 @@ pub struct StructureSettings {
     /// Whether `method` was configured: a constrained label surface is already smooth and
     /// true to its voxels, so a mesh smoother runs on it only when asked for.
     pub method_configured: bool,
+    /// `profile = "cfd"`: what readies the structure for a flow solver.
+    pub cfd: Option<CfdProfile>,
 }
 
 /// The resolved configuration.
@@ -158,6 +161,40 @@ impl StructureSettings {
         }
         t.push(("noise", word(e.noise.name())));
         t.push(("thin", word(e.thin.name())));
+        match &self.cfd {
+            None => t.push(("profile", word("none"))),
+            Some(c) => {
+                t.push(("profile", word("cfd")));
+                let inlet = match c.inlet {
+                    Inlet::Largest => word("largest"),
+                    Inlet::Index(i) => Value::Integer(i as i64),
+                    Inlet::Point(p) => Value::Array(p.iter().map(|&x| Value::Float(x)).collect()),
+                };
+                t.push(("inlet", inlet));
+                if let Some(n) = c.expect_patches {
+                    t.push(("expect_patches", Value::Integer(n as i64)));
+                }
+                match c.finish.remesh.map(|r| r.edge) {
+                    Some(crate::remesh::EdgeTarget::Mm(mm)) => {
+                        t.push(("edge_mm", Value::Float(mm)))
+                    }
+                    Some(crate::remesh::EdgeTarget::PerRadius(k)) => {
+                        t.push(("edge_per_radius", Value::Float(k)))
+                    }
+                    None => {}
+                }
+                if let Some(k) = c.finish.flow_extension {
+                    t.push(("flow_extension", Value::Float(k)));
+                    let ids = c
+                        .finish
+                        .extend_patches
+                        .iter()
+                        .map(|&i| Value::Integer(i.into()));
+                    t.push(("extend", Value::Array(ids.collect())));
+                }
+                t.push(("close_open_ends", Value::Boolean(c.finish.close_open_ends)));
+            }
+        }
         let mut text: String = t.iter().map(|(k, v)| format!("{k} = {v}\n")).collect();
         if self.voxel.is_none() {
             text.push_str("# voxel: reconstructed from each mesh where the method needs it\n");
@@ -199,8 +236,53 @@ fn overlay(base: &Settings, over: &Settings) -> Settings {
         surface,
         sigma_mm,
         noise,
-        thin
+        thin,
+        profile,
+        edge_mm,
+        edge_per_radius,
+        flow_extension,
+        extend,
+        close_open_ends,
+        inlet,
+        expect_patches
     )
+}
+
+/// The `inlet` key: "largest", a patch index (by decreasing area) or [x, y, z] (mm).
+fn parse_inlet(v: &toml::Value) -> Result<Inlet, String> {
+    let bad = || format!("inlet = {v} must be \"largest\", a patch index or [x, y, z] in mm");
+    match v {
+        toml::Value::String(s) => s.parse().map_err(|_| bad()),
+        toml::Value::Integer(i) => usize::try_from(*i).map(Inlet::Index).map_err(|_| bad()),
+        toml::Value::Array(a) if a.len() == 3 => {
+            let p: Vec<f64> = a
+                .iter()
+                .map(|x| x.as_float().or_else(|| x.as_integer().map(|i| i as f64)))
+                .collect::<Option<_>>()
+                .filter(|p: &Vec<f64>| p.iter().all(|x| x.is_finite()))
+                .ok_or_else(bad)?;
+            Ok(Inlet::Point([p[0], p[1], p[2]]))
+        }
+        _ => Err(bad()),
+    }
+}
+
+/// The cfd profile of merged settings, when `profile = "cfd"`.
+fn resolve_cfd(s: &Settings) -> Result<Option<CfdProfile>, String> {
+    match s.profile.as_deref() {
+        None | Some("none") => Ok(None),
+        Some("cfd") => CfdProfile::new(CfdOptions {
+            inlet: s.inlet.as_ref().map(parse_inlet).transpose()?,
+            expect_patches: s.expect_patches,
+            edge_mm: s.edge_mm,
+            edge_per_radius: s.edge_per_radius,
+            flow_extension: s.flow_extension,
+            extend: s.extend.clone().unwrap_or_default(),
+            close_open_ends: s.close_open_ends.unwrap_or(false),
+        })
+        .map(Some),
+        Some(other) => Err(format!("profile = {other:?} must be \"cfd\" or \"none\"")),
+    }
 }
 
 /// Turns merged settings into effective ones, with defaults for what is unset.
@@ -342,6 +424,7 @@ fn resolve(s: &Settings) -> Result<StructureSettings, String> {
             .unwrap_or(crate::smooth::DEFAULT_MAX_DISPLACEMENT_VOXELS),
         extraction,
         method_configured: s.method.is_some(),
+        cfd: resolve_cfd(s)?,
     })
 }
 
@@ -388,6 +471,23 @@ impl Plan {
             ));
         }
         resolve(&config.defaults).map_err(|m| invalid(format!("[defaults]: {m}")))?;
+        let cfd_anywhere = std::iter::once(&config.defaults)
+            .chain(config.structures.iter().map(|s| &s.settings))
+            .any(|s| s.profile.as_deref() == Some("cfd"));
+        let stray = std::iter::once(("[defaults]".to_string(), &config.defaults))
+            .chain(
+                config
+                    .structures
+                    .iter()
+                    .map(|s| (format!("[[structure]] {:?}", s.pattern), &s.settings)),
+            )
+            .find(|(_, s)| !s.cfd_keys().is_empty());
+        if let (false, Some((table, s))) = (cfd_anywhere, stray) {
+            return Err(invalid(format!(
+                "{table}: {} only apply with profile = \"cfd\", which no table sets",
+                s.cfd_keys().join(", ")
+            )));
+        }
         let mut structures = Vec::new();
         for (i, s) in config.structures.into_iter().enumerate() {
             let pattern = glob::Pattern::new(&s.pattern).map_err(|e| {
@@ -698,5 +798,60 @@ skip = false
             .unwrap_err()
             .to_string();
         assert!(err.contains("vtk"));
+    }
+
+    #[test]
+    fn the_cfd_profile_is_set_per_structure_and_checked() {
+        let base = "[input]\nroots = [\"c\"]\n[output]\nroot = \"o\"\n";
+        let p = plan(&format!(
+            "{base}[defaults]\nedge_mm = 0.3\n[[structure]]\npattern = \"vessel*\"\nprofile = \"cfd\"\ninlet = [1, 2.5, 3]\nflow_extension = 5\nextend = [2]\nexpect_patches = 3\n"
+        ))
+        .unwrap();
+        assert!(p.settings_for("tumor").cfd.is_none());
+        let c = p.settings_for("vessel_a").cfd.unwrap();
+        assert_eq!(c.inlet, Inlet::Point([1.0, 2.5, 3.0]));
+        assert_eq!(c.expect_patches, Some(3));
+        assert_eq!(c.finish.flow_extension, Some(5.0));
+        assert_eq!(c.finish.extend_patches, vec![2]);
+        assert_eq!(
+            c.finish.remesh.map(|r| r.edge),
+            Some(crate::remesh::EdgeTarget::Mm(0.3))
+        );
+        let view = p.settings_for("vessel_a").config_view();
+        assert!(
+            view.contains("profile = \"cfd\"") && view.contains("edge_mm = 0.3"),
+            "{view}"
+        );
+        // The view parses back into the same settings.
+        let again = plan(&format!("{base}[defaults]\n{view}")).unwrap();
+        assert_eq!(again.settings_for("x").cfd, Some(c));
+        for inlet in ["\"largest\"", "1", "\"2\""] {
+            let text = format!("{base}[defaults]\nprofile = \"cfd\"\ninlet = {inlet}\n");
+            assert!(plan(&text).is_ok(), "{inlet}");
+        }
+        let cases = [
+            ("edge_mm = 0.3\n", "no table sets"),
+            ("profile = \"cdf\"\n", "\"cfd\" or \"none\""),
+            (
+                "profile = \"cfd\"\nedge_mm = 0.3\nedge_per_radius = 0.5\n",
+                "exclude",
+            ),
+            ("profile = \"cfd\"\nedge_mm = -1.0\n", "edge_mm"),
+            ("profile = \"cfd\"\nextend = [2]\n", "set flow_extension"),
+            (
+                "profile = \"cfd\"\nflow_extension = 5\nextend = [1]\n",
+                "wall is 1",
+            ),
+            ("profile = \"cfd\"\nflow_extension = 1000\n", "longer than"),
+            ("profile = \"cfd\"\ninlet = [1, 2]\n", "inlet"),
+            ("profile = \"cfd\"\ninlet = -1\n", "inlet"),
+            ("profile = \"cfd\"\nexpect_patches = 0\n", "expect_patches"),
+        ];
+        for (extra, needle) in cases {
+            let err = plan(&format!("{base}[defaults]\n{extra}"))
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains(needle), "{extra}: {err}");
+        }
     }
 }

@@ -27,6 +27,16 @@ pub struct SummaryRow {
     pub reference_distance_after_mm: Option<f64>,
     pub staircase_share: Option<f64>,
     pub n_caps: Option<u64>,
+    /// cfd profile: the patches as "id name diameter" (mm), inlet first.
+    pub patches: String,
+    /// cfd profile: smallest triangle angle of the surface handed over (degrees).
+    pub min_angle_deg: Option<f64>,
+    /// cfd profile: share of edges within 20 % of the remeshing target (0..1).
+    pub edges_within_20_percent: Option<f64>,
+    /// cfd profile: Hausdorff distance remeshing moved the surface (mm).
+    pub remesh_hausdorff_mm: Option<f64>,
+    /// cfd profile: narrowest lumen after / before smoothing.
+    pub lumen_ratio: Option<f64>,
     pub error: String,
 }
 
@@ -106,6 +116,11 @@ pub fn rows_of(report: &Value) -> Vec<SummaryRow> {
             reference_distance_after_mm: None,
             staircase_share: None,
             n_caps: None,
+            patches: String::new(),
+            min_angle_deg: None,
+            edges_within_20_percent: None,
+            remesh_hausdorff_mm: None,
+            lumen_ratio: None,
             error,
         }];
     }
@@ -115,6 +130,22 @@ pub fn rows_of(report: &Value) -> Vec<SummaryRow> {
             let m = &s["metrics"];
             let refs = m["references"].as_array().cloned().unwrap_or_default();
             let min_of = |key: &str| refs.iter().filter_map(|r| r[key].as_f64()).reduce(f64::min);
+            let cfd = &s["cfd"];
+            let patches: Vec<String> = cfd["patches"]["patches"]
+                .as_array()
+                .map(|ps| {
+                    ps.iter()
+                        .map(|p| {
+                            format!(
+                                "{} {} {:.3} mm",
+                                p["id"].as_u64().unwrap_or(0),
+                                p["name"].as_str().unwrap_or(""),
+                                p["diameter_mm"].as_f64().unwrap_or(f64::NAN)
+                            )
+                        })
+                        .collect()
+                })
+                .unwrap_or_default();
             SummaryRow {
                 case: case.clone(),
                 structure: s["name"].as_str().unwrap_or("").to_string(),
@@ -131,6 +162,11 @@ pub fn rows_of(report: &Value) -> Vec<SummaryRow> {
                 reference_distance_after_mm: min_of("after_mm"),
                 staircase_share: s["context"]["staircase_share"].as_f64(),
                 n_caps: s["context"]["caps"].as_array().map(|c| c.len() as u64),
+                patches: patches.join(", "),
+                min_angle_deg: cfd["checks"]["quality"]["min_angle_deg"].as_f64(),
+                edges_within_20_percent: cfd["checks"]["edges"]["within_20_percent"].as_f64(),
+                remesh_hausdorff_mm: cfd["remeshed"]["hausdorff_mm"].as_f64(),
+                lumen_ratio: cfd["checks"]["narrowing"]["ratio"].as_f64(),
                 error: s["error"].as_str().unwrap_or("").to_string(),
             }
         })
@@ -237,7 +273,7 @@ fn csv_field(s: &str) -> String {
 
 /// The rows as CSV with a header line.
 pub fn to_csv(rows: &[SummaryRow]) -> String {
-    let mut out = String::from("case,structure,status,method,n_vertices,hausdorff_mm,mean_distance_mm,volume_percent,curvature_before_deg,curvature_after_deg,max_d_voxel_diagonals,reference_distance_before_mm,reference_distance_after_mm,staircase_share,n_caps,error\n");
+    let mut out = String::from("case,structure,status,method,n_vertices,hausdorff_mm,mean_distance_mm,volume_percent,curvature_before_deg,curvature_after_deg,max_d_voxel_diagonals,reference_distance_before_mm,reference_distance_after_mm,staircase_share,n_caps,patches,min_angle_deg,edges_within_20_percent,remesh_hausdorff_mm,lumen_ratio,error\n");
     let num = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x}"));
     for r in rows {
         let fields = [
@@ -256,6 +292,11 @@ pub fn to_csv(rows: &[SummaryRow]) -> String {
             num(r.reference_distance_after_mm),
             num(r.staircase_share),
             r.n_caps.map_or(String::new(), |c| c.to_string()),
+            csv_field(&r.patches),
+            num(r.min_angle_deg),
+            num(r.edges_within_20_percent),
+            num(r.remesh_hausdorff_mm),
+            num(r.lumen_ratio),
             csv_field(&r.error),
         ];
         out.push_str(&fields.join(","));

@@ -41,7 +41,7 @@ pub enum EdgeTarget {
 }
 
 /// Remeshing settings.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct RemeshParams {
     pub edge: EdgeTarget,
     /// Rounds of split, collapse, flip, relax (10 is usual).
@@ -242,7 +242,7 @@ pub fn remesh(
         r.check("collapse");
         r.flip_to_valence();
         r.check("flip");
-        r.relax_and_project();
+        r.relax_and_project(None);
         r.check("relax");
     }
     r.improve_angles();
@@ -616,15 +616,14 @@ impl Remesher {
     }
 
     /// Collapses the edge of h in whichever direction the checks allow; true if it did.
-    fn try_collapse(&mut self, h: u32) -> bool {
+    /// Collapses edge h (either way round) if that keeps the surface's shape; returns the
+    /// vertex that stays.
+    fn try_collapse(&mut self, h: u32) -> Option<u32> {
         let t = self.he.twin(h);
         let (e, p) = match self.collapse_target(h) {
             Some(p) => (h, p),
-            None if t != NONE => match self.collapse_target(t) {
-                Some(p) => (t, p),
-                None => return false,
-            },
-            None => return false,
+            None if t != NONE => (t, self.collapse_target(t)?),
+            None => return None,
         };
         let (gone, kept) = (self.he.from(e), self.he.to(e));
         let s = self.target(gone, kept);
@@ -635,7 +634,7 @@ impl Remesher {
             self.size[kept as usize] = s;
         }
         self.collapses += 1;
-        true
+        Some(kept)
     }
 
     fn collapse_short(&mut self) {
@@ -673,41 +672,57 @@ impl Remesher {
     }
 
     fn flip_to_valence(&mut self) {
+        // Valences (and border flags) once per pass, kept up to date by each flip.
+        let n = self.he.pos.len();
+        let mut val = vec![0i32; n];
+        let mut border = vec![false; n];
+        for (f, t) in self.he.tri.iter().enumerate() {
+            if !self.he.face_alive[f] {
+                continue;
+            }
+            for i in 0..3 {
+                val[t[i] as usize] += 1;
+                if self.he.twin[3 * f + i] == NONE {
+                    // A border edge is the only edge counted at its far end too.
+                    val[t[(i + 1) % 3] as usize] += 1;
+                    border[t[i] as usize] = true;
+                    border[t[(i + 1) % 3] as usize] = true;
+                }
+            }
+        }
         let n_he = self.he.tri.len() as u32 * 3;
         let mut count = 0;
-        let mut ring = Vec::new();
+        let mut ring = std::mem::take(&mut self.buf);
         for h in 0..n_he {
             let Some([a, b, c, d]) = self.flippable(h) else {
                 continue;
             };
-            let mut val = [0i32; 4];
-            let mut tgt = [0i32; 4];
-            let mut exists = false;
-            for (i, &v) in [a, b, c, d].iter().enumerate() {
-                let border = self.edges_at(v, &mut ring);
-                val[i] = ring.len() as i32;
-                tgt[i] = if border { 4 } else { 6 };
-                if i == 2 {
-                    exists = ring.iter().any(|&e| self.other(e, c) == d);
-                }
-            }
-            if exists || val[0] <= 3 || val[1] <= 3 {
+            let q = [a, b, c, d];
+            let v = q.map(|x| val[x as usize]);
+            let tgt = q.map(|x| if border[x as usize] { 4 } else { 6 });
+            if v[0] <= 3 || v[1] <= 3 {
                 continue;
             }
-            let before: i32 = (0..4).map(|i| (val[i] - tgt[i]).abs()).sum();
-            let after = (val[0] - 1 - tgt[0]).abs()
-                + (val[1] - 1 - tgt[1]).abs()
-                + (val[2] + 1 - tgt[2]).abs()
-                + (val[3] + 1 - tgt[3]).abs();
+            let before: i32 = (0..4).map(|i| (v[i] - tgt[i]).abs()).sum();
+            let after = (v[0] - 1 - tgt[0]).abs()
+                + (v[1] - 1 - tgt[1]).abs()
+                + (v[2] + 1 - tgt[2]).abs()
+                + (v[3] + 1 - tgt[3]).abs();
             if after >= before {
                 continue;
             }
-            if !self.flip_keeps_shape(h) {
+            self.edges_at(c, &mut ring);
+            if ring.iter().any(|&e| self.other(e, c) == d) || !self.flip_keeps_shape(h) {
                 continue;
             }
             self.he.flip(h);
+            val[a as usize] -= 1;
+            val[b as usize] -= 1;
+            val[c as usize] += 1;
+            val[d as usize] += 1;
             count += 1;
         }
+        self.buf = ring;
         self.flips += count;
     }
 

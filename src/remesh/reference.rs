@@ -188,6 +188,12 @@ impl PatchSurface {
                     if g == face {
                         continue;
                     }
+                    // A face whose bounding sphere is no nearer than the best cannot win.
+                    let (c, r) = self.grid.bounding_sphere(g);
+                    let to_centre = (0..3).map(|k| (q[k] - c[k]).powi(2)).sum::<f64>().sqrt();
+                    if to_centre > r && (to_centre - r).powi(2) >= best {
+                        continue;
+                    }
                     let (y, d2) = self.closest(g, q);
                     if d2 < best {
                         (face, x, best) = (g, y, d2);

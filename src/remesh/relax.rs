@@ -7,12 +7,14 @@ use super::{dot, sub, tri_normal, unit, Kind, Placement, Remesher, NONE};
 use rayon::prelude::*;
 
 impl Remesher {
-    pub(super) fn relax_and_project(&mut self) {
+    /// Relaxes every vertex, or those `only` marks.
+    pub(super) fn relax_and_project(&mut self, only: Option<&[bool]>) {
         let n = self.he.pos.len();
         let moved: Vec<Option<Placement>> = (0..n as u32)
             .into_par_iter()
             .map_init(Vec::new, |ring, v| {
-                if !self.he.vert_alive[v as usize] {
+                let chosen = only.is_none_or(|m| m.get(v as usize) == Some(&true));
+                if !self.he.vert_alive[v as usize] || !chosen {
                     return None;
                 }
                 let x = self.he.pos[v as usize];

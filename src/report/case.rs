@@ -2,6 +2,7 @@
 //! configuration give the same bytes) and a human-readable `report.md`. Timings, which differ
 //! run to run, go to `timings.json` instead.
 
+use crate::cfd::{PatchKind, Patches, RemeshSummary, SurfaceChecks};
 use crate::report::compare::CompareReport;
 use crate::report::inspect::ContextSummary;
 use crate::report::label_map::{LabelMapInfo, LabelSource};
@@ -45,6 +46,80 @@ pub struct StructureReport {
     /// The label map and label this structure was extracted from (absent for mesh files).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub source: Option<LabelSource>,
+    /// What the cfd profile made of the structure (absent without `profile = "cfd"`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cfd: Option<CfdReport>,
+}
+
+/// The surface the cfd profile handed over: its size, patch table, checks and quality figures.
+#[derive(Debug, Clone, Serialize)]
+pub struct CfdReport {
+    pub n_vertices: usize,
+    pub n_triangles: usize,
+    /// The patches measured on the final surface (ids are its `CellEntityIds`).
+    pub patches: Patches,
+    pub checks: SurfaceChecks,
+    /// Remeshing counts and the distance it moved the surface, when remeshed.
+    pub remeshed: Option<RemeshSummary>,
+}
+
+impl CfdReport {
+    /// The patch table and quality figures as Markdown.
+    fn to_markdown(&self, name: &str) -> String {
+        let mut s = format!(
+            "\n`{name}` (cfd profile): {} vertices, {} triangles; checks passed: watertight{}, oriented, no self-intersection, no degenerate face\n\n",
+            self.n_vertices,
+            self.n_triangles,
+            if self.checks.open_ends_allowed { " but for the open ends" } else { "" }
+        );
+        s.push_str("| id | patch | kind | centre (mm) | normal | area (mm²) | diameter (mm) | off-plane (mm) | extension (mm) |\n|---|---|---|---|---|---|---|---|---|\n");
+        for p in &self.patches.patches {
+            let (c, n) = (p.centre_mm, p.normal);
+            let kind = match p.kind {
+                PatchKind::Cap => "cap",
+                PatchKind::OpenEnd => "open end",
+                PatchKind::ClosedEnd => "closed end",
+            };
+            let _ = writeln!(
+                s,
+                "| {} | {} | {kind} | {:.3}, {:.3}, {:.3} | {:.3}, {:.3}, {:.3} | {:.3} | {:.3} | {:.1e} | {:.2} |",
+                p.id, p.name, c[0], c[1], c[2], n[0], n[1], n[2], p.area_mm2, p.diameter_mm, p.planarity_mm, p.extension_mm
+            );
+        }
+        let _ = writeln!(s, "| 1 | wall | wall | | | | | | |");
+        let q = &self.checks.quality;
+        let _ = write!(
+            s,
+            "\nangles: min {:.1} deg, 1st percentile {:.1} deg",
+            q.min_angle_deg, q.p1_angle_deg
+        );
+        if let Some(e) = &self.checks.edges {
+            let _ = write!(
+                s,
+                "; edges {:.3}-{:.3} mm (mean {:.3}), {:.1} % within 20 % of the target",
+                e.min_mm,
+                e.max_mm,
+                e.mean_mm,
+                100.0 * e.within_20_percent
+            );
+        }
+        if let Some(r) = &self.remeshed {
+            let _ = write!(
+                s,
+                "; remeshing moved the surface by {:.4} mm at most ({:.4} mm mean)",
+                r.hausdorff_mm, r.mean_distance_mm
+            );
+        }
+        if let Some(n) = &self.checks.narrowing {
+            let _ = write!(
+                s,
+                "; narrowest lumen {:.3} -> {:.3} mm",
+                n.before_mm, n.after_mm
+            );
+        }
+        s.push('\n');
+        s
+    }
 }
 
 /// Everything about one case.
@@ -162,6 +237,9 @@ impl CaseReport {
                     None => "binary (vertices at cell-edge midpoints)".into(),
                 };
                 let _ = writeln!(s, "\n`{}`: surface {how}", st.name);
+            }
+            if let Some(c) = &st.cfd {
+                s.push_str(&c.to_markdown(&st.name));
             }
             for w in &st.warnings {
                 let _ = writeln!(s, "\n`{}`: {w}", st.name);

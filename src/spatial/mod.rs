@@ -252,6 +252,12 @@ impl TriangleGrid {
         self.triangles[f as usize]
     }
 
+    /// A sphere around triangle `f`: its centroid and the distance to its furthest corner (mm),
+    /// for rejecting it cheaply in nearest-point searches.
+    pub fn bounding_sphere(&self, f: u32) -> ([f64; 3], f64) {
+        self.spheres[f as usize]
+    }
+
     /// The nearest triangle to `p` and its distance; `None` if there are no triangles.
     pub fn nearest(&self, p: [f32; 3]) -> Option<Nearest> {
         self.nearest_matching(p, |_| true)
@@ -259,7 +265,18 @@ impl TriangleGrid {
 
     /// The nearest triangle to `p` among those `keep` accepts (by index); `None` if none is.
     pub fn nearest_matching(&self, p: [f32; 3], keep: impl Fn(u32) -> bool) -> Option<Nearest> {
-        if self.triangles.is_empty() {
+        self.nearest_matching_within(p, f64::INFINITY, keep)
+    }
+
+    /// As [`Self::nearest_matching`], among triangles no further than `within` (mm): a search
+    /// that only needs to beat a known distance stops there.
+    pub fn nearest_matching_within(
+        &self,
+        p: [f32; 3],
+        within: f64,
+        keep: impl Fn(u32) -> bool,
+    ) -> Option<Nearest> {
+        if self.triangles.is_empty() || within.is_nan() {
             return None;
         }
         let q = p.map(f64::from);
@@ -267,8 +284,9 @@ impl TriangleGrid {
         let center: [usize; 3] = std::array::from_fn(|a| {
             (((q[a] - self.origin[a]) / self.cell).floor().max(0.0) as usize).min(dims[a] - 1)
         });
-        let mut best = f64::INFINITY;
-        let mut best_triangle = 0u32;
+        let mut best = within;
+        // None yet: a triangle exactly at `within` still counts.
+        let mut best_triangle = u32::MAX;
         let max_ring = dims.iter().copied().max().unwrap_or(1);
         for r in 0..=max_ring {
             let lo: [usize; 3] = std::array::from_fn(|a| center[a].saturating_sub(r));
@@ -343,7 +361,7 @@ impl TriangleGrid {
                 break;
             }
         }
-        best.is_finite().then_some(Nearest {
+        (best_triangle != u32::MAX).then_some(Nearest {
             distance: best,
             triangle: best_triangle,
         })
