@@ -635,3 +635,85 @@ fn the_narrowest_lumen_is_the_smallest_opposite_wall_distance() {
         assert_eq!(narrowest_lumen(m, &t), brute);
     }
 }
+
+/// How much a closed polyline zigzags (mm): each point's offset from its neighbours' middle,
+/// against the mean of its neighbours' offsets. A circle turns the same at every point (0);
+/// a staircase turns one way, then the other.
+fn zigzag(points: &[[f64; 3]]) -> f64 {
+    let n = points.len();
+    let turn: Vec<[f64; 3]> = (0..n)
+        .map(|i| {
+            let (a, b, x) = (points[(i + n - 1) % n], points[(i + 1) % n], points[i]);
+            std::array::from_fn(|k| x[k] - 0.5 * (a[k] + b[k]))
+        })
+        .collect();
+    (0..n)
+        .map(|i| {
+            let (a, b) = (turn[(i + n - 1) % n], turn[(i + 1) % n]);
+            distance(turn[i], std::array::from_fn(|k| 0.5 * (a[k] + b[k])))
+        })
+        .sum::<f64>()
+        / n as f64
+}
+
+#[test]
+fn rims_are_smoothed_within_their_planes_only() {
+    use destair::cfd::rims::smooth_rims;
+    for (ends, rx, ry) in [
+        (BorderEnds::Capped, 0.0, 0.0),
+        (BorderEnds::Capped, 30.0, 45.0),
+        (BorderEnds::Open, 20.0, -35.0),
+    ] {
+        let m = aneurysm(ends, rx, ry);
+        let patches = patches_of(&m, Inlet::Largest).unwrap();
+        let (s, summary) = smooth_rims(&m, &patches);
+        assert_eq!(summary.patches, 3, "{summary:?}");
+        assert!(summary.kept.is_empty());
+        let before = |v: u32| m.positions()[v as usize].map(f64::from);
+        let after = |v: u32| s.positions()[v as usize].map(f64::from);
+        // Only patch vertices move, and none across its patch's plane.
+        let on_patch = destair::cfd::patch_vertices(&patches, m.n_vertices());
+        for v in 0..m.n_vertices() as u32 {
+            if !on_patch[v as usize] {
+                assert_eq!(before(v), after(v));
+            }
+        }
+        for p in &patches.patches {
+            for &v in &p.vertices {
+                let off = |x: [f64; 3]| {
+                    (0..3)
+                        .map(|k| (x[k] - p.centre_mm[k]) * p.normal[k])
+                        .sum::<f64>()
+                };
+                assert!((off(after(v)) - off(before(v))).abs() < 1e-5, "{}", p.name);
+            }
+        }
+        // The rim loses its zigzag but keeps its size, and nothing turned over.
+        let t = Topology::build(&s);
+        let again = destair::cfd::remeasure_patches(&s, &t, patches.face_ids.clone(), &patches);
+        for (b, a) in patches.patches.iter().zip(&again.patches) {
+            assert!(
+                (a.area_mm2 / b.area_mm2 - 1.0).abs() < 0.02,
+                "{}: {} -> {}",
+                b.name,
+                b.area_mm2,
+                a.area_mm2
+            );
+        }
+        if ends == BorderEnds::Open {
+            for l in t.boundary_loops() {
+                let rim = |f: &dyn Fn(u32) -> [f64; 3]| {
+                    zigzag(&l.vertices.iter().map(|&v| f(v)).collect::<Vec<_>>())
+                };
+                assert!(
+                    rim(&after) < 0.5 * rim(&before),
+                    "{} {}",
+                    rim(&before),
+                    rim(&after)
+                );
+            }
+        }
+        let checks = destair::cfd::check_surface(&s, &t, ends == BorderEnds::Open, None);
+        assert!(checks.failures().is_empty(), "{:?}", checks.failures());
+    }
+}

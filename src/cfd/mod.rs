@@ -10,6 +10,7 @@ pub mod extend;
 pub mod outputs;
 pub mod patches;
 pub mod profile;
+pub mod rims;
 
 pub use checks::{check_surface, SurfaceChecks};
 pub use close::{close_open_ends, CloseError};
@@ -19,6 +20,6 @@ pub use patches::{
     find_patches, remeasure_patches, Inlet, Patch, PatchError, PatchKind, Patches, WALL_ID,
 };
 pub use profile::{
-    finish_surface, patch_vertices, CfdError, CfdOptions, CfdParams, CfdProfile, CfdSurface,
-    RemeshSummary,
+    finish_surface, patch_vertices, prepare_surface, CfdError, CfdOptions, CfdParams, CfdProfile,
+    CfdSurface, PreparedSurface, RemeshSummary,
 };

@@ -1,12 +1,15 @@
-//! The cfd profile after smoothing, as one step: flow extensions (if asked), open ends closed
-//! by flat caps (if asked), the wall remeshed to the target with patch borders kept, the patches measured again on the
-//! result, and every check passed, or an error with the reasons. Smoothing itself is the
-//! caller's, with [`patch_vertices`] held fixed so caps stay planar and rims stay put.
+//! The cfd profile around the caller's smoothing, in two steps. Before: the patches found and
+//! their rims smoothed in their planes unless kept ([`prepare_surface`]); smoothing then holds
+//! the patch vertices, so caps stay planar and rims stay put. After ([`finish_surface`]): flow
+//! extensions (if asked), open ends closed by flat caps (if asked), the wall remeshed to the
+//! target with patch borders kept, the patches measured again on the result, and every check
+//! passed, or an error with the reasons.
 
 use super::checks::{check_surface, SurfaceChecks};
 use super::close::{close_open_ends, CloseError};
 use super::extend::{add_flow_extensions, ExtendError};
-use super::patches::{remeasure_patches, Inlet, PatchKind, Patches};
+use super::patches::{find_patches, remeasure_patches, Inlet, PatchError, PatchKind, Patches};
+use super::rims::{smooth_rims, RimSmoothing};
 use crate::mesh::{Mesh, Topology};
 use crate::metrics::distance::surface_distance;
 use crate::remesh::{remesh, EdgeTarget, RemeshError, RemeshParams};
@@ -26,6 +29,9 @@ pub struct CfdParams {
     pub extend_patches: Vec<u32>,
     /// Close open ends with flat caps (otherwise they stay open patches).
     pub close_open_ends: bool,
+    /// Keep the rims as the input has them instead of smoothing them in their patch's plane
+    /// ([`super::rims`]).
+    pub keep_rims: bool,
     /// Remesh to this target (no remeshing when `None`).
     pub remesh: Option<RemeshParams>,
 }
@@ -55,6 +61,7 @@ pub struct CfdOptions {
     /// Patch ids that get an extension (all when empty).
     pub extend: Vec<u32>,
     pub close_open_ends: bool,
+    pub keep_rims: bool,
 }
 
 impl CfdProfile {
@@ -100,6 +107,7 @@ impl CfdProfile {
                 flow_extension: options.flow_extension,
                 extend_patches: options.extend,
                 close_open_ends: options.close_open_ends,
+                keep_rims: options.keep_rims,
                 remesh: edge.map(|edge| RemeshParams {
                     edge,
                     ..RemeshParams::uniform(1.0)
@@ -145,6 +153,8 @@ pub struct CfdSurface {
     /// Measured on `mesh`; `face_ids` are its `CellEntityIds`.
     pub patches: Patches,
     pub checks: SurfaceChecks,
+    /// What smoothing the rims did (`None` with `keep_rims`).
+    pub rims: Option<RimSmoothing>,
     pub remeshed: Option<RemeshSummary>,
 }
 
@@ -162,16 +172,53 @@ pub fn patch_vertices(patches: &Patches, n_vertices: usize) -> Vec<bool> {
     fixed
 }
 
-/// Extends, closes, remeshes and checks `smoothed` (the vertices of `original`, moved), whose
-/// patches `patches` were found on `original` (smoothing moves vertices, not faces, so the
-/// face ids still hold). A vessel whose narrowest lumen smoothing halved fails.
+/// A vessel ready to be smoothed for the profile.
+#[derive(Debug, Clone)]
+pub struct PreparedSurface {
+    /// Found on the input, with the inlet and count the profile asks for.
+    pub patches: Patches,
+    /// The input with its rims smoothed in their planes (unless the profile keeps them): what
+    /// smoothing starts from, so the wall next to a rim follows the smoothed rim.
+    pub start: Mesh,
+    /// The vertices smoothing must hold ([`patch_vertices`]).
+    pub held: Vec<bool>,
+    pub rims: Option<RimSmoothing>,
+}
+
+/// Finds the patches of `mesh` (`topology` built from it) and smooths their rims in their
+/// planes: the first step of the profile, before the caller's smoothing.
+pub fn prepare_surface(
+    mesh: &Mesh,
+    topology: &Topology,
+    profile: &CfdProfile,
+) -> Result<PreparedSurface, PatchError> {
+    let patches = find_patches(mesh, topology, profile.inlet, profile.expect_patches)?;
+    let held = patch_vertices(&patches, mesh.n_vertices());
+    let (start, rims) = if profile.finish.keep_rims {
+        (mesh.clone(), None)
+    } else {
+        let (m, r) = smooth_rims(mesh, &patches);
+        (m, Some(r))
+    };
+    Ok(PreparedSurface {
+        patches,
+        start,
+        held,
+        rims,
+    })
+}
+
+/// Extends, closes, remeshes and checks `smoothed` (the vertices of `original`, moved, from
+/// `prepared.start`), whose patches were found on `original` (smoothing moves vertices, not
+/// faces, so the face ids still hold). A vessel whose narrowest lumen smoothing halved fails.
 pub fn finish_surface(
     original: &Mesh,
     smoothed: &Mesh,
-    patches: &Patches,
+    prepared: &PreparedSurface,
     params: &CfdParams,
 ) -> Result<CfdSurface, CfdError> {
     // Measured on the smoothed surface first: open-end planes follow the smoothed rims.
+    let patches = &prepared.patches;
     let topology = Topology::build(smoothed);
     let narrowed = super::checks::narrowing(original, smoothed, &topology);
     let measured = remeasure_patches(smoothed, &topology, patches.face_ids.clone(), patches);
@@ -221,6 +268,7 @@ pub fn finish_surface(
         mesh,
         patches,
         checks,
+        rims: prepared.rims.clone(),
         remeshed,
     })
 }

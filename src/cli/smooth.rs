@@ -71,6 +71,10 @@ pub struct Args {
     /// cfd profile: close open ends with flat caps.
     #[arg(long, requires = "profile")]
     close_open_ends: bool,
+    /// cfd profile: keep the patch rims as the input has them (by default they are smoothed
+    /// within their patch's plane, which takes out the voxel zigzag of a clipped rim).
+    #[arg(long, requires = "profile")]
+    keep_rims: bool,
     /// cfd profile: add a straight flow extension of this many equivalent diameters at every
     /// patch (or at the patches of --extend), ending in a flat cap.
     #[arg(long, requires = "profile")]
@@ -117,6 +121,7 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         edge_mm,
         edge_per_radius,
         close_open_ends,
+        keep_rims,
         flow_extension,
         extend,
         inlet,
@@ -183,6 +188,7 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
                 flow_extension,
                 extend,
                 close_open_ends,
+                keep_rims,
             })
             .map_err(|m| UsageError(format!("--profile cfd: {m}")))?,
         ),
@@ -194,16 +200,16 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     let stem = output
         .file_stem()
         .map_or_else(|| "vessel".into(), |s| s.to_string_lossy().into_owned());
-    // The cfd profile's patches, found before smoothing so the smoother can hold them.
-    let patches = match &cfd {
+    // The cfd profile's patches, found before smoothing so the smoother can hold them, and
+    // their rims smoothed in their planes.
+    let prepared = match &cfd {
         Some(profile) => {
-            let found =
-                destair::cfd::find_patches(mesh, &topology, profile.inlet, profile.expect_patches)
-                    .map_err(|e| Rejected(format!("{}: {e}; nothing written", input.display())))?;
-            for path in destair::cfd::outputs::planned_files(folder, &stem, &found) {
+            let prepared = destair::cfd::prepare_surface(mesh, &topology, profile)
+                .map_err(|e| Rejected(format!("{}: {e}; nothing written", input.display())))?;
+            for path in destair::cfd::outputs::planned_files(folder, &stem, &prepared.patches) {
                 refuse_overwriting_inputs(&path, &inputs, force)?;
             }
-            Some(found)
+            Some(prepared)
         }
         None => None,
     };
@@ -271,14 +277,14 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     } else {
         boundary_vertices(&topology)
     };
-    if let Some(p) = &patches {
-        let held = destair::cfd::patch_vertices(p, mesh.n_vertices());
-        for (f, h) in fixed.iter_mut().zip(held) {
+    if let Some(p) = &prepared {
+        for (f, &h) in fixed.iter_mut().zip(&p.held) {
             *f |= h;
         }
     }
+    let start = prepared.as_ref().map_or(mesh, |p| &p.start);
     let started = std::time::Instant::now();
-    let (positions, stats) = smooth(mesh, &topology, &method, iterations, &weights, &fixed);
+    let (positions, stats) = smooth(start, &topology, &method, iterations, &weights, &fixed);
     let seconds = started.elapsed().as_secs_f64();
     destair::smooth::check_result(
         mesh.positions(),
@@ -289,7 +295,7 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     .map_err(|m| Rejected(format!("{}: {m}; nothing written", input.display())))?;
     let mut smoothed = mesh.clone();
     smoothed.positions_mut().copy_from_slice(&positions);
-    let cfd = match (&patches, &cfd) {
+    let cfd = match (&prepared, &cfd) {
         (Some(p), Some(profile)) => {
             let done = destair::cfd::finish_surface(mesh, &smoothed, p, &profile.finish)
                 .map_err(|e| Rejected(format!("{}: {e}; nothing written", input.display())))?;

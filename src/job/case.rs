@@ -403,23 +403,39 @@ fn process_structure(
         return encode(plan, stem, &in_world(&place, mesh), loaded, &[]);
     }
     let topology = Topology::build(mesh);
-    // The cfd profile's patches, found before smoothing so the smoother holds them, in world
-    // mm (the inlet point, the patch table and the files are in world coordinates).
+    // The cfd profile's patches, found before smoothing so the smoother holds them, and their
+    // rims smoothed in their planes, in world mm (the inlet point, the patch table and the
+    // files are in world coordinates).
     let cfd = match &settings.cfd {
         Some(profile) => {
             let world = in_world(&place, mesh);
             let moved = matches!(world, std::borrow::Cow::Owned(_));
             let world_topology = moved.then(|| Topology::build(&world));
-            let patches = crate::cfd::find_patches(
+            let prepared = crate::cfd::prepare_surface(
                 &world,
                 world_topology.as_ref().unwrap_or(&topology),
-                profile.inlet,
-                profile.expect_patches,
+                profile,
             )
             .map_err(|e| format!("cfd profile: {e}"))?;
-            Some((profile, world, patches))
+            Some((profile, world, prepared))
         }
         None => None,
+    };
+    // Where smoothing starts: the input, with the cfd profile's smoothed rims brought back
+    // into this structure's coordinates (only the vertices that moved, so held caps keep their
+    // exact coordinates).
+    let start: std::borrow::Cow<Mesh> = match &cfd {
+        Some((_, world, prepared)) if prepared.start.positions() != world.positions() => {
+            let mut m = mesh.clone();
+            let moved = world.positions().iter().zip(prepared.start.positions());
+            for (p, (w, s)) in m.positions_mut().iter_mut().zip(moved) {
+                if w != s {
+                    *p = place.of_world(s.map(f64::from)).map(|x| x as f32);
+                }
+            }
+            std::borrow::Cow::Owned(m)
+        }
+        _ => std::borrow::Cow::Borrowed(mesh),
     };
     let header = file
         .source
@@ -490,14 +506,13 @@ fn process_structure(
         } else {
             boundary_vertices(&topology)
         };
-        if let Some((_, _, patches)) = &cfd {
-            let held = crate::cfd::patch_vertices(patches, mesh.n_vertices());
-            for (f, h) in fixed.iter_mut().zip(held) {
+        if let Some((_, _, prepared)) = &cfd {
+            for (f, &h) in fixed.iter_mut().zip(&prepared.held) {
                 *f |= h;
             }
         }
         let (positions, stats) = smooth(
-            mesh,
+            &start,
             &topology,
             &method,
             settings.iterations,
@@ -527,7 +542,7 @@ fn process_structure(
         )?;
         (positions, Some(ctx.weights))
     } else {
-        (mesh.positions().to_vec(), None)
+        (start.positions().to_vec(), None)
     };
     // Metrics and displacements from the binary extraction for constrained label surfaces,
     // else from the input (the triangles are the same).
@@ -554,9 +569,9 @@ fn process_structure(
         .into_iter()
         .map(|d| d as f32)
         .collect();
-    if let Some((profile, world, patches)) = &cfd {
+    if let Some((profile, world, prepared)) = &cfd {
         let smoothed_world = in_world(&place, &smoothed);
-        let done = crate::cfd::finish_surface(world, &smoothed_world, patches, &profile.finish)
+        let done = crate::cfd::finish_surface(world, &smoothed_world, prepared, &profile.finish)
             .map_err(|e| format!("cfd profile: {e}"))?;
         if plan.annotate {
             report.warnings.push(
@@ -573,6 +588,7 @@ fn process_structure(
             n_triangles: done.mesh.n_triangles(),
             patches: done.patches,
             checks: done.checks,
+            rims: done.rims,
             remeshed: done.remeshed,
         });
         report.status = "ok".into();

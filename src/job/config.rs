@@ -154,6 +154,8 @@ pub struct Settings {
     pub extend: Option<Vec<u32>>,
     /// cfd profile: close open ends with flat caps.
     pub close_open_ends: Option<bool>,
+    /// cfd profile: keep patch rims as they are instead of smoothing them in their plane.
+    pub keep_rims: Option<bool>,
     /// cfd profile: "largest", a patch index by decreasing area, or [x, y, z] (mm).
     pub inlet: Option<toml::Value>,
     /// cfd profile: the number of patches each matching structure has; another count fails.
@@ -170,6 +172,7 @@ impl Settings {
             ("flow_extension", self.flow_extension.is_some()),
             ("extend", self.extend.is_some()),
             ("close_open_ends", self.close_open_ends.is_some()),
+            ("keep_rims", self.keep_rims.is_some()),
             ("inlet", self.inlet.is_some()),
             ("expect_patches", self.expect_patches.is_some()),
         ];

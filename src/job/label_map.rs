@@ -93,7 +93,8 @@ impl Place {
         }
     }
 
-    fn of_world(&self, w: [f64; 3]) -> [f64; 3] {
+    /// A world point (mm) in this place's coordinates.
+    pub fn of_world(&self, w: [f64; 3]) -> [f64; 3] {
         match self {
             Place::World => w,
             Place::Frame(_, f) => f.to_frame(w),

@@ -193,6 +193,7 @@ impl StructureSettings {
                     t.push(("extend", Value::Array(ids.collect())));
                 }
                 t.push(("close_open_ends", Value::Boolean(c.finish.close_open_ends)));
+                t.push(("keep_rims", Value::Boolean(c.finish.keep_rims)));
             }
         }
         let mut text: String = t.iter().map(|(k, v)| format!("{k} = {v}\n")).collect();
@@ -243,6 +244,7 @@ fn overlay(base: &Settings, over: &Settings) -> Settings {
         flow_extension,
         extend,
         close_open_ends,
+        keep_rims,
         inlet,
         expect_patches
     )
@@ -279,6 +281,7 @@ fn resolve_cfd(s: &Settings) -> Result<Option<CfdProfile>, String> {
             flow_extension: s.flow_extension,
             extend: s.extend.clone().unwrap_or_default(),
             close_open_ends: s.close_open_ends.unwrap_or(false),
+            keep_rims: s.keep_rims.unwrap_or(false),
         })
         .map(Some),
         Some(other) => Err(format!("profile = {other:?} must be \"cfd\" or \"none\"")),

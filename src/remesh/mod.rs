@@ -197,7 +197,7 @@ pub fn remesh(
     };
     // Finer where the surface curves faster than the target can follow, but never below a
     // quarter of the nominal target; then averaged over one-rings so sizes change gradually.
-    let curved = sizing::curvature_size(mesh, &topology, face_ids);
+    let curved = sizing::curvature_size(mesh, &topology, face_ids, &nominal);
     let mut size: Vec<f64> = nominal
         .iter()
         .zip(&curved)

@@ -9,8 +9,12 @@ use crate::spatial::{closest_point_on_triangle, TriangleGrid};
 use rayon::prelude::*;
 
 /// Radius (mm) of the largest inside ball touching each vertex. On a tube this is the tube's
-/// radius; at an aneurysm dome the dome's. `max_mm` bounds it where the ball escapes (open ends).
+/// radius; at an aneurysm dome the dome's. `max_mm` bounds it where the ball escapes (open
+/// ends), and so does 5 x the median radius of a sample of the vertices: remeshing clamps sizes
+/// to within 4 x the median anyway, and smaller first balls keep the searches local (starting
+/// every ball at half the mesh's diagonal took 2.1 s on the 17 k-triangle aneurysm, this 1.2 s).
 pub fn local_radius(mesh: &Mesh, topology: &Topology, max_mm: f64) -> Vec<f64> {
+    const SAMPLE_EVERY: usize = 16;
     let grid = TriangleGrid::build(mesh);
     let normals = vertex_normals(mesh, topology);
     let p = mesh.positions();
@@ -19,42 +23,52 @@ pub fn local_radius(mesh: &Mesh, topology: &Topology, max_mm: f64) -> Vec<f64> {
     } else {
         1.0
     };
+    let ball = |v: usize, max_mm: f64| {
+        let x = p[v].map(f64::from);
+        let n = normals[v].map(|c| -volume_sign * c as f64); // inward
+        if n == [0.0; 3] {
+            return max_mm;
+        }
+        let mut r = max_mm;
+        for _ in 0..40 {
+            let c: [f64; 3] = std::array::from_fn(|k| x[k] + r * n[k]);
+            // Done when nothing but the touching point's neighbourhood is inside (2 % slack
+            // for the chords of a polygonal surface).
+            let Some(near) = grid.nearest_matching_within(c.map(|q| q as f32), r, |_| true) else {
+                break;
+            };
+            let t = grid.triangle(near.triangle).map(|q| q.map(f64::from));
+            let q = closest_point_on_triangle(c, t[0], t[1], t[2]);
+            let dist2: f64 = (0..3).map(|k| (c[k] - q[k]).powi(2)).sum();
+            if dist2.sqrt() >= r * 0.98 {
+                break;
+            }
+            let xq: [f64; 3] = std::array::from_fn(|k| q[k] - x[k]);
+            let along = xq[0] * n[0] + xq[1] * n[1] + xq[2] * n[2];
+            let len2 = xq[0] * xq[0] + xq[1] * xq[1] + xq[2] * xq[2];
+            if along <= 0.0 || len2 <= 0.0 {
+                break;
+            }
+            let shrunk = len2 / (2.0 * along);
+            if shrunk >= r {
+                break;
+            }
+            r = shrunk;
+        }
+        r
+    };
+    let mut sample: Vec<f64> = (0..mesh.n_vertices())
+        .into_par_iter()
+        .step_by(SAMPLE_EVERY)
+        .map(|v| ball(v, max_mm))
+        .collect();
+    sample.sort_by(|a, b| a.total_cmp(b));
+    let cap = sample
+        .get(sample.len() / 2)
+        .map_or(max_mm, |&m| (5.0 * m).min(max_mm));
     let raw: Vec<f64> = (0..mesh.n_vertices())
         .into_par_iter()
-        .map(|v| {
-            let x = p[v].map(f64::from);
-            let n = normals[v].map(|c| -volume_sign * c as f64); // inward
-            if n == [0.0; 3] {
-                return max_mm;
-            }
-            let mut r = max_mm;
-            for _ in 0..40 {
-                let c: [f64; 3] = std::array::from_fn(|k| x[k] + r * n[k]);
-                let Some(near) = grid.nearest(c.map(|q| q as f32)) else {
-                    return max_mm;
-                };
-                let t = grid.triangle(near.triangle).map(|q| q.map(f64::from));
-                let q = closest_point_on_triangle(c, t[0], t[1], t[2]);
-                let dist2: f64 = (0..3).map(|k| (c[k] - q[k]).powi(2)).sum();
-                // Done when nothing but the touching point's neighbourhood is inside (2 %
-                // slack for the chords of a polygonal surface).
-                if dist2.sqrt() >= r * 0.98 {
-                    break;
-                }
-                let xq: [f64; 3] = std::array::from_fn(|k| q[k] - x[k]);
-                let along = xq[0] * n[0] + xq[1] * n[1] + xq[2] * n[2];
-                let len2 = xq[0] * xq[0] + xq[1] * xq[1] + xq[2] * xq[2];
-                if along <= 0.0 || len2 <= 0.0 {
-                    break;
-                }
-                let shrunk = len2 / (2.0 * along);
-                if shrunk >= r {
-                    break;
-                }
-                r = shrunk;
-            }
-            r
-        })
+        .map(|v| ball(v, cap))
         .collect();
     // Two rounds of one-ring averaging.
     let mut radius = raw;
@@ -76,11 +90,25 @@ pub(super) fn ring_average(topology: &Topology, values: &[f64]) -> Vec<f64> {
         .collect()
 }
 
+/// Where neighbouring normals turn by an angle theta (radians) the edge is at most
+/// `CREASE x nominal / theta`: a chord across a crease of theta stands off it by about a
+/// quarter of its length times theta, so this keeps it within a tenth of the nominal length
+/// however fine the input's edges are (0.8 / curvature alone measures the turn per input edge:
+/// on the smoothed aneurysm phantom at 0.5 mm the remeshed surface stood 0.105 mm off, 0.095
+/// with this).
+const CREASE: f64 = 0.4;
+
 /// Largest edge length (mm) at each vertex for which a chord stays within about a tenth of its
-/// own length from the surface: `0.8 / curvature`, where the curvature is the largest normal
-/// turn per mm along the vertex's edges inside one patch. Infinite where the surface is flat.
-/// Edges between patches are creases by design and do not count.
-pub fn curvature_size(mesh: &Mesh, topology: &Topology, face_ids: &[u32]) -> Vec<f64> {
+/// own length from the surface, `0.8 / curvature`, where the curvature is the largest normal
+/// turn per mm along the vertex's edges inside one patch, and across a crease within a tenth
+/// of the vertex's `nominal` target (see `CREASE`). Infinite where the surface is flat. Edges
+/// between patches are creases by design and do not count.
+pub fn curvature_size(
+    mesh: &Mesh,
+    topology: &Topology,
+    face_ids: &[u32],
+    nominal: &[f64],
+) -> Vec<f64> {
     let p = mesh.positions();
     let tris = mesh.triangles();
     let at = |v: u32| p[v as usize].map(f64::from);
@@ -120,6 +148,7 @@ pub fn curvature_size(mesh: &Mesh, topology: &Topology, face_ids: &[u32]) -> Vec
         .map(|v| {
             let x = at(v);
             let mut curvature = 0.0f64;
+            let mut turn = 0.0f64;
             for &u in topology.neighbors(v as usize) {
                 let ids: Vec<u32> = topology
                     .vertex_faces(v as usize)
@@ -135,12 +164,13 @@ pub fn curvature_size(mesh: &Mesh, topology: &Topology, face_ids: &[u32]) -> Vec
                     [i, j] if i == j => {
                         let (a, b) = (normal_in(v, *i), normal_in(u, *i));
                         curvature = curvature.max(dist(a, b) / len);
+                        turn = turn.max(dist(a, b));
                     }
                     _ => {}
                 }
             }
             if curvature > 0.0 {
-                0.8 / curvature
+                (0.8 / curvature).min(CREASE * nominal[v as usize] / turn)
             } else {
                 f64::INFINITY
             }

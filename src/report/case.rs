@@ -2,6 +2,7 @@
 //! configuration give the same bytes) and a human-readable `report.md`. Timings, which differ
 //! run to run, go to `timings.json` instead.
 
+use crate::cfd::rims::RimSmoothing;
 use crate::cfd::{PatchKind, Patches, RemeshSummary, SurfaceChecks};
 use crate::report::compare::CompareReport;
 use crate::report::inspect::ContextSummary;
@@ -59,6 +60,8 @@ pub struct CfdReport {
     /// The patches measured on the final surface (ids are its `CellEntityIds`).
     pub patches: Patches,
     pub checks: SurfaceChecks,
+    /// How far the rims moved when smoothed in their planes (absent with `keep_rims`).
+    pub rims: Option<RimSmoothing>,
     /// Remeshing counts and the distance it moved the surface, when remeshed.
     pub remeshed: Option<RemeshSummary>,
 }
@@ -102,6 +105,16 @@ impl CfdReport {
                 e.mean_mm,
                 100.0 * e.within_20_percent
             );
+        }
+        if let Some(r) = &self.rims {
+            let _ = write!(
+                s,
+                "; rims smoothed in their planes by {:.4} mm at most",
+                r.max_moved_mm
+            );
+            if !r.kept.is_empty() {
+                let _ = write!(s, " (kept as they were at patches {:?})", r.kept);
+            }
         }
         if let Some(r) = &self.remeshed {
             let _ = write!(
