@@ -128,7 +128,7 @@ fn the_capped_aneurysm_keeps_its_patches_and_planar_caps() {
         assert!(checks.failures().is_empty(), "{:?}", checks.failures());
         assert!(checks.quality.min_angle_deg >= 25.0, "{:?}", checks.quality);
         assert!(
-            checks.edges.unwrap().within_20_percent >= 0.9,
+            checks.edges.unwrap().within_20_percent >= 0.95,
             "{:?}",
             checks.edges
         );

@@ -29,6 +29,9 @@ const SPLIT: f64 = 1.3;
 /// and more edges are within 20 % of it (measured on a sphere and the aneurysm phantom).
 const COLLAPSE: f64 = 0.85;
 
+/// Extra rounds stop once this share of edges is within 20 % of its target.
+const EVEN_SHARE: f64 = 0.96;
+
 /// Target edge length.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -44,7 +47,8 @@ pub enum EdgeTarget {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct RemeshParams {
     pub edge: EdgeTarget,
-    /// Rounds of split, collapse, flip, relax (10 is usual).
+    /// Rounds of split, collapse, flip, relax (10 is usual); up to twice as many more run while
+    /// fewer than 96 % of edges are within 20 % of their target.
     pub iterations: u32,
     /// Smallest and largest edge length (mm) a relative target may ask for.
     pub clamp_mm: (f64, f64),
@@ -235,7 +239,14 @@ pub fn remesh(
         collapse_stretch: SPLIT,
     };
     r.classify();
-    for _ in 0..params.iterations {
+    // The rounds asked for, then more (up to twice as many again) while the share of edges
+    // within 20 % of their target is below `EVEN_SHARE`: near the input's own edge length its
+    // irregular connectivity takes longer to even out (on the aneurysm at 0.4 mm, 92 % after
+    // 10 rounds, 95 % after 20).
+    for round in 0..3 * params.iterations {
+        if round >= params.iterations && r.share_within_20_percent() >= EVEN_SHARE {
+            break;
+        }
         r.split_long();
         r.check("split");
         r.collapse_short();
@@ -398,6 +409,27 @@ impl Remesher {
         match (self.kind[a as usize], self.kind[b as usize]) {
             (Kind::Rim(l), _) | (_, Kind::Rim(l)) => Some(l),
             _ => None,
+        }
+    }
+
+    /// Share of edges (0..1) within 20 % of their target length.
+    fn share_within_20_percent(&self) -> f64 {
+        let n_he = self.he.tri.len() as u32 * 3;
+        let (within, all) = (0..n_he)
+            .into_par_iter()
+            .filter(|&h| {
+                let t = self.he.twin(h);
+                self.he.face_alive[(h / 3) as usize] && (t == NONE || t > h)
+            })
+            .map(|h| {
+                let ratio = self.len(h) / self.target(self.he.from(h), self.he.to(h));
+                (usize::from((0.8..=1.2).contains(&ratio)), 1usize)
+            })
+            .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+        if all == 0 {
+            1.0
+        } else {
+            within as f64 / all as f64
         }
     }
 
