@@ -11,6 +11,7 @@ pub mod paths;
 pub mod pipeline;
 pub mod plan;
 pub mod review;
+pub mod settings;
 pub mod summary;
 
 pub use config::{Config, ConfigError};
