@@ -345,11 +345,12 @@ impl Plan {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::smooth::MethodKind;
 
-    fn plan(text: &str) -> Result<Plan, ConfigError> {
+    /// The plan of a config text, as if read from /c/cohort.toml.
+    pub(in crate::job) fn plan(text: &str) -> Result<Plan, ConfigError> {
         Plan::new(
             Config::parse(text, Path::new("/c/cohort.toml"))?,
             Path::new("/c/cohort.toml"),

@@ -395,17 +395,8 @@ pub(super) fn resolve(s: &Settings) -> Result<StructureSettings, String> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::config::{Config, ConfigError};
-    use super::super::plan::Plan;
+    use super::super::plan::tests::plan;
     use super::*;
-    use std::path::Path;
-
-    fn plan(text: &str) -> Result<Plan, ConfigError> {
-        Plan::new(
-            Config::parse(text, Path::new("/c/cohort.toml"))?,
-            Path::new("/c/cohort.toml"),
-        )
-    }
 
     #[test]
     fn the_cfd_profile_is_set_per_structure_and_checked() {
