@@ -717,3 +717,48 @@ fn rims_are_smoothed_within_their_planes_only() {
         assert!(checks.failures().is_empty(), "{:?}", checks.failures());
     }
 }
+
+/// VTK's own reader, when Python with the `vtk` package is installed (skipped otherwise): the
+/// VTP opens, with as many cells per `CellEntityIds` value as the patch table says, closed.
+#[test]
+fn vtk_reads_the_vtp_with_its_cell_entity_ids() {
+    let have_vtk = std::process::Command::new("python3")
+        .args(["-c", "import vtk"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !have_vtk {
+        eprintln!("skipped: python3 with the vtk package is not installed");
+        return;
+    }
+    let m = aneurysm(BorderEnds::Capped, 30.0, 45.0);
+    let patches = patches_of(&m, Inlet::Largest).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let meta = destair::io::MeshMeta::default();
+    destair::cfd::write_patch_files(dir.path(), "vessel", &m, &meta, &patches).unwrap();
+    let script = r#"
+import sys, collections, vtk
+r = vtk.vtkXMLPolyDataReader(); r.SetFileName(sys.argv[1]); r.Update()
+pd = r.GetOutput()
+ids = pd.GetCellData().GetArray("CellEntityIds")
+counts = collections.Counter(int(ids.GetValue(i)) for i in range(ids.GetNumberOfTuples()))
+fe = vtk.vtkFeatureEdges(); fe.SetInputData(pd)
+fe.BoundaryEdgesOn(); fe.NonManifoldEdgesOn(); fe.FeatureEdgesOff(); fe.ManifoldEdgesOff()
+fe.Update()
+print(pd.GetNumberOfPoints(), fe.GetOutput().GetNumberOfCells(), *sorted(counts.items()))
+"#;
+    let out = std::process::Command::new("python3")
+        .args(["-c", script])
+        .arg(dir.path().join("vessel.vtp"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let mut expected = format!("{} 0 (1, {})", m.n_vertices(), patches.wall_faces);
+    for p in &patches.patches {
+        expected.push_str(&format!(" ({}, {})", p.id, p.faces.len()));
+    }
+    assert_eq!(String::from_utf8_lossy(&out.stdout).trim(), expected);
+}
