@@ -15,6 +15,7 @@ use crate::metrics::distance::surface_distance;
 use crate::remesh::{remesh, EdgeTarget, RemeshError, RemeshParams};
 use crate::spatial::TriangleGrid;
 use serde::Serialize;
+use std::borrow::Cow;
 use thiserror::Error;
 
 /// Longest flow extension accepted (equivalent diameters): beyond it a typo, not a choice.
@@ -222,16 +223,21 @@ pub fn finish_surface(
     let topology = Topology::build(smoothed);
     let narrowed = super::checks::narrowing(original, smoothed, &topology);
     let measured = remeasure_patches(smoothed, &topology, patches.face_ids.clone(), patches);
-    let (mesh, patches) = match params.flow_extension {
-        Some(k) => add_flow_extensions(smoothed, &measured, k, &params.extend_patches)?,
-        None => (smoothed.clone(), measured),
+    // Borrowed until a step makes a new mesh; the topology is built once per mesh.
+    let (mesh, patches): (Cow<Mesh>, Patches) = match params.flow_extension {
+        Some(k) => {
+            let (m, p) = add_flow_extensions(smoothed, &measured, k, &params.extend_patches)?;
+            (Cow::Owned(m), p)
+        }
+        None => (Cow::Borrowed(smoothed), measured),
     };
     let (mesh, patches) = if params.close_open_ends {
-        close_open_ends(&mesh, &patches)?
+        let (m, p) = close_open_ends(&mesh, &patches)?;
+        (Cow::Owned(m), p)
     } else {
         (mesh, patches)
     };
-    let (mesh, patches, target, remeshed) = match &params.remesh {
+    let (mesh, patches, topology, target, remeshed) = match &params.remesh {
         Some(rp) => {
             let started = std::time::Instant::now();
             let r = remesh(&mesh, &patches.face_ids, rp)?;
@@ -252,11 +258,17 @@ pub fn finish_surface(
             };
             let topology = Topology::build(&r.mesh);
             let again = remeasure_patches(&r.mesh, &topology, r.face_ids, &patches);
-            (r.mesh, again, Some(r.target_mm), Some(summary))
+            let target = Some(r.target_mm);
+            (Cow::Owned(r.mesh), again, topology, target, Some(summary))
         }
-        None => (mesh, patches, None, None),
+        None => {
+            let topology = match mesh {
+                Cow::Borrowed(_) => topology,
+                Cow::Owned(ref m) => Topology::build(m),
+            };
+            (mesh, patches, topology, None, None)
+        }
     };
-    let topology = Topology::build(&mesh);
     let open = patches.patches.iter().any(|p| p.kind == PatchKind::OpenEnd);
     let mut checks = check_surface(&mesh, &topology, open, target.as_deref());
     checks.narrowing = narrowed;
@@ -265,7 +277,7 @@ pub fn finish_surface(
         return Err(CfdError::Checks(failures));
     }
     Ok(CfdSurface {
-        mesh,
+        mesh: mesh.into_owned(),
         patches,
         checks,
         rims: prepared.rims.clone(),
