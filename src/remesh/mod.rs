@@ -2,13 +2,16 @@
 //! than 1.3 times the target are split (longest first), shorter than 0.85 times collapsed,
 //! edges flipped towards valence 6 (4 on open borders), vertices relaxed tangentially and
 //! projected back onto the input; a last pass flips and collapses away angles under 25-30
-//! degrees. The target shrinks where the surface curves faster than it can follow.
+//! degrees; last, input vertices the result stands off by more than a sixth of the target get a
+//! vertex of their own (`cover.rs`). The target shrinks where the surface curves faster than it
+//! can follow.
 //! Patch borders stay: a vertex inside a patch moves on that patch of the input only (a planar
 //! cap stays in its plane), a vertex on a rim moves along the input's rim, and corners (where
 //! three patches or more meet) stay put. The topology (genus, borders, patches) never changes;
 //! a result that would change it is refused.
 
 mod angles;
+mod cover;
 mod flip;
 mod halfedge;
 mod reference;
@@ -98,6 +101,9 @@ pub struct Remeshed {
     pub splits: usize,
     pub collapses: usize,
     pub flips: usize,
+    /// Vertices put onto input vertices the remeshed surface would otherwise stand off
+    /// (dimples and bumps narrower than two edges).
+    pub covered: usize,
 }
 
 /// Where relaxation puts a vertex: position, target edge length there, arc position (rims),
@@ -176,6 +182,11 @@ pub fn remesh(
     if mesh.n_triangles() == 0 {
         return Err(RemeshError::Empty);
     }
+    // The output is a new mesh, so the input may be renumbered: in an order where neighbours
+    // sit together, relaxation and projection miss the cache far less.
+    let (ordered, face_order) = crate::mesh::order::locality_ordered(mesh);
+    let ordered_ids: Vec<u32> = face_order.iter().map(|&f| face_ids[f as usize]).collect();
+    let (mesh, face_ids) = (&ordered, &ordered_ids[..]);
     let topology = Topology::build(mesh);
     let nominal: Vec<f64> = match params.edge {
         EdgeTarget::Mm(l) if l > 0.0 && l.is_finite() => vec![l; mesh.n_vertices()],
@@ -216,6 +227,7 @@ pub fn remesh(
         }
     }
     let reference = Reference::build(mesh, &topology, face_ids, &size);
+    let input_size = size.clone();
     let pos: Vec<[f64; 3]> = mesh.positions().iter().map(|p| p.map(f64::from)).collect();
     let he = HalfEdgeMesh::build(pos, mesh.triangles().to_vec(), face_ids.to_vec()).map_err(
         |e| match e {
@@ -258,6 +270,7 @@ pub fn remesh(
         r.check("relax");
     }
     r.improve_angles();
+    let covered = r.cover_input(mesh, &topology, face_ids, &input_size);
     let after = euler_and_borders(&r.he);
     for (what, b, a) in [
         ("Euler characteristic", before.0, after.0),
@@ -290,6 +303,7 @@ pub fn remesh(
         splits: r.splits,
         collapses: r.collapses,
         flips: r.flips,
+        covered,
     })
 }
 
@@ -397,12 +411,44 @@ impl Remesher {
         self.hint = self.reference.start_face.clone();
     }
 
-    /// Arc position of vertex v on line l (a corner's found by nearest point).
-    fn arc_on(&self, v: u32, l: u32) -> f64 {
-        match self.kind[v as usize] {
-            Kind::Rim(m) if m == l => self.arc[v as usize],
-            _ => self.reference.lines[l as usize].param_near(self.he.pos[v as usize]),
-        }
+    /// The arc position on line l halfway between neighbours a and b on it. A vertex that is
+    /// not inside l (a corner) sits at one of its ends; on a line that starts and ends at the
+    /// same corner, the end on the other vertex's side.
+    fn arc_between(&self, a: u32, b: u32, l: u32) -> f64 {
+        let line = &self.reference.lines[l as usize];
+        let inside = |v: u32| match self.kind[v as usize] {
+            Kind::Rim(m) if m == l => Some(self.arc[v as usize]),
+            _ => None,
+        };
+        let end_of = |v: u32, towards: f64| {
+            let x = self.he.pos[v as usize];
+            if line.closed {
+                return line.param_near(x);
+            }
+            let len = line.length();
+            let (d0, d1) = (dist(line.eval(0.0).0, x), dist(line.eval(len).0, x));
+            if (d0 - d1).abs() <= 1e-9 * (1.0 + d0) {
+                if towards < 0.5 * len {
+                    0.0
+                } else {
+                    len
+                }
+            } else if d0 < d1 {
+                0.0
+            } else {
+                len
+            }
+        };
+        let (sa, sb) = match (inside(a), inside(b)) {
+            (Some(x), Some(y)) => (x, y),
+            (Some(x), None) => (x, end_of(b, x)),
+            (None, Some(y)) => (end_of(a, y), y),
+            (None, None) => (
+                line.param_near(self.he.pos[a as usize]),
+                line.param_near(self.he.pos[b as usize]),
+            ),
+        };
+        line.between(sa, sb)
     }
 
     /// The line a feature edge (a, b) lies on, if either end is inside one.
@@ -418,10 +464,7 @@ impl Remesher {
         let n_he = self.he.tri.len() as u32 * 3;
         let (within, all) = (0..n_he)
             .into_par_iter()
-            .filter(|&h| {
-                let t = self.he.twin(h);
-                self.he.face_alive[(h / 3) as usize] && (t == NONE || t > h)
-            })
+            .filter(|&h| self.is_edge_once(h))
             .map(|h| {
                 let ratio = self.len(h) / self.target(self.he.from(h), self.he.to(h));
                 (usize::from((0.8..=1.2).contains(&ratio)), 1usize)
@@ -463,33 +506,55 @@ impl Remesher {
     }
 
     /// Splits edges longer than the split limit, longest (relative to the target) first, so
-    /// faces are bisected across their longest edge and keep their angles (Rivara).
+    /// faces are bisected across their longest edge and keep their angles (Rivara). After the
+    /// first sweep only the edges at the new vertices can still be too long, so later sweeps
+    /// look at those alone (a whole sweep over 4 M half-edges per pass cost more than the
+    /// splits).
     fn split_long(&mut self) {
-        for _round in 0..8 {
-            let n_he = self.he.tri.len() as u32 * 3;
-            let mut long: Vec<(f64, u32)> = (0..n_he)
-                .into_par_iter()
-                .filter_map(|h| {
-                    let t = self.he.twin(h);
-                    if !self.he.face_alive[(h / 3) as usize] || (t != NONE && t < h) {
-                        return None;
-                    }
-                    let ratio = self.len(h) / self.target(self.he.from(h), self.he.to(h));
-                    (ratio > SPLIT).then_some((ratio, h))
-                })
-                .collect();
+        // Edges are kept as vertex pairs: a split renumbers the half-edges of its faces.
+        let too_long = |r: &Remesher, h: u32| {
+            let (a, b) = (r.he.from(h), r.he.to(h));
+            let ratio = r.len(h) / r.target(a, b);
+            (ratio > SPLIT).then_some((ratio, a.min(b), a.max(b)))
+        };
+        let n_he = self.he.tri.len() as u32 * 3;
+        let mut long: Vec<(f64, u32, u32)> = (0..n_he)
+            .into_par_iter()
+            .filter(|&h| self.is_edge_once(h))
+            .filter_map(|h| too_long(self, h))
+            .collect();
+        let mut ring = Vec::new();
+        let mut made = Vec::new();
+        for _pass in 0..8 {
             if long.is_empty() {
                 break;
             }
-            long.sort_by(|x, y| y.0.total_cmp(&x.0).then(x.1.cmp(&y.1)));
-            for (_, h) in long {
-                let (a, b) = (self.he.from(h), self.he.to(h));
+            long.sort_by(|x, y| y.0.total_cmp(&x.0).then((x.1, x.2).cmp(&(y.1, y.2))));
+            made.clear();
+            for &(_, a, b) in &long {
+                self.edges_at(a, &mut ring);
+                let Some(&h) = ring.iter().find(|&&e| self.other(e, a) == b) else {
+                    continue; // the edge is gone
+                };
                 if self.len(h) <= SPLIT * self.target(a, b) {
-                    continue; // h is a shorter edge now
+                    continue; // shorter now
                 }
-                self.split_edge(h);
+                made.extend(self.split_edge(h));
             }
+            long.clear();
+            for &m in &made {
+                self.edges_at(m, &mut ring);
+                long.extend(ring.iter().filter_map(|&e| too_long(self, e)));
+            }
+            long.sort_by_key(|&(_, a, b)| (a, b));
+            long.dedup_by_key(|&mut (_, a, b)| (a, b));
         }
+    }
+
+    /// Whether h is alive and the half-edge its edge is visited by (the lower of the two).
+    fn is_edge_once(&self, h: u32) -> bool {
+        let t = self.he.twin(h);
+        self.he.face_alive[(h / 3) as usize] && (t == NONE || t > h)
     }
 
     /// Splits the edge of h at its midpoint and moves the new vertex onto the input (along the
@@ -498,11 +563,7 @@ impl Remesher {
         let (a, b) = (self.he.from(h), self.he.to(h));
         let (kind, arc) = if self.he.is_feature(h) {
             let l = self.line_of_edge(a, b)?; // an edge between two corners stays
-            let line = &self.reference.lines[l as usize];
-            (
-                Kind::Rim(l),
-                line.between(self.arc_on(a, l), self.arc_on(b, l)),
-            )
+            (Kind::Rim(l), self.arc_between(a, b, l))
         } else {
             (Kind::Interior(self.he.face_id[(h / 3) as usize]), 0.0)
         };
@@ -670,28 +731,25 @@ impl Remesher {
         Some(kept)
     }
 
+    /// Collapses edges shorter than the collapse limit, in half-edge order (each checked when
+    /// its turn comes, as earlier collapses move vertices: finding them in parallel first
+    /// gave less even edges).
     fn collapse_short(&mut self) {
         let n_he = self.he.tri.len() as u32 * 3;
         for h in 0..n_he {
-            if !self.he.face_alive[(h / 3) as usize] {
-                continue;
+            if self.is_edge_once(h)
+                && self.len(h) < COLLAPSE * self.target(self.he.from(h), self.he.to(h))
+            {
+                self.try_collapse(h);
             }
-            let t = self.he.twin(h);
-            if t != NONE && t < h {
-                continue;
-            }
-            let (a, b) = (self.he.from(h), self.he.to(h));
-            if self.len(h) >= COLLAPSE * self.target(a, b) {
-                continue;
-            }
-            self.try_collapse(h);
         }
     }
 }
 
 /// Smallest interior angle of a triangle (radians); 0 for a degenerate one.
 fn min_angle(t: [[f64; 3]; 3]) -> f64 {
-    let mut smallest = std::f64::consts::PI;
+    // The smallest angle has the largest cosine: one acos instead of three.
+    let mut largest_cos = -1.0f64;
     for i in 0..3 {
         let u = sub(t[(i + 1) % 3], t[i]);
         let v = sub(t[(i + 2) % 3], t[i]);
@@ -699,8 +757,7 @@ fn min_angle(t: [[f64; 3]; 3]) -> f64 {
         if lu == 0.0 || lv == 0.0 {
             return 0.0;
         }
-        let c = (dot(u, v) / (lu * lv)).clamp(-1.0, 1.0);
-        smallest = smallest.min(c.acos());
+        largest_cos = largest_cos.max(dot(u, v) / (lu * lv));
     }
-    smallest
+    largest_cos.clamp(-1.0, 1.0).acos()
 }

@@ -4,7 +4,7 @@
 //! Each input vertex carries a target edge length (mm), interpolated at the projection.
 
 use crate::mesh::{Mesh, Topology};
-use crate::spatial::{closest_point_on_triangle, TriangleGrid};
+use crate::spatial::{closest_point_and_region, TriangleGrid, TriangleRegion};
 use rayon::prelude::*;
 
 /// A feature line of the input (a cap rim, an open border, or a piece of one between two
@@ -162,43 +162,48 @@ impl PatchSurface {
         }
     }
 
-    /// Closest point of face f to q and its squared distance.
-    fn closest(&self, f: u32, q: [f64; 3]) -> ([f64; 3], f64) {
+    /// Closest point of face f to q, its squared distance and where on f it lies.
+    fn closest(&self, f: u32, q: [f64; 3]) -> ([f64; 3], f64, TriangleRegion) {
         let t = self.grid.triangle(f).map(|c| c.map(f64::from));
-        let x = closest_point_on_triangle(q, t[0], t[1], t[2]);
+        let (x, region) = closest_point_and_region(q, t[0], t[1], t[2]);
         let d2 = (0..3).map(|k| (x[k] - q[k]).powi(2)).sum();
-        (x, d2)
+        (x, d2, region)
     }
 
-    /// From face `start`, moves to the face sharing a corner that is closer to q while there is
-    /// one: the nearest face near where the vertex was, which for the small moves of
-    /// relaxation is the nearest face, found without a grid search, and never a face across a
-    /// thin gap.
+    /// Faces around local vertex v.
+    fn faces_at(&self, v: u32) -> &[u32] {
+        let (a, b) = (
+            self.vertex_face_offsets[v as usize] as usize,
+            self.vertex_face_offsets[v as usize + 1] as usize,
+        );
+        &self.vertex_faces[a..b]
+    }
+
+    /// From face `start`, steps to a closer neighbour across the edge or around the corner
+    /// where the closest point lies, until it lies inside a face or no such neighbour is
+    /// closer: the nearest face near where the vertex was, which for the small moves of
+    /// relaxation is the nearest face, found in one to three triangle tests without a grid
+    /// search, and never a face across a thin gap.
     fn walk(&self, start: u32, q: [f64; 3]) -> (u32, [f64; 3], f64) {
-        let (mut x, mut best) = self.closest(start, q);
+        let (mut x, mut best, mut region) = self.closest(start, q);
         let mut face = start;
         for _ in 0..64 {
+            let corners = self.triangles[face as usize];
+            let (around, other) = match region {
+                TriangleRegion::Inside => break,
+                TriangleRegion::Corner(i) => (corners[i as usize], NO_CORNER),
+                TriangleRegion::Edge(i) => (corners[i as usize], corners[(i as usize + 1) % 3]),
+            };
             let mut moved = false;
-            for v in self.triangles[face as usize] {
-                let (a, b) = (
-                    self.vertex_face_offsets[v as usize] as usize,
-                    self.vertex_face_offsets[v as usize + 1] as usize,
-                );
-                for &g in &self.vertex_faces[a..b] {
-                    if g == face {
-                        continue;
-                    }
-                    // A face whose bounding sphere is no nearer than the best cannot win.
-                    let (c, r) = self.grid.bounding_sphere(g);
-                    let to_centre = (0..3).map(|k| (q[k] - c[k]).powi(2)).sum::<f64>().sqrt();
-                    if to_centre > r && (to_centre - r).powi(2) >= best {
-                        continue;
-                    }
-                    let (y, d2) = self.closest(g, q);
-                    if d2 < best {
-                        (face, x, best) = (g, y, d2);
-                        moved = true;
-                    }
+            for &g in self.faces_at(around) {
+                if g == face || (other != NO_CORNER && !self.triangles[g as usize].contains(&other))
+                {
+                    continue;
+                }
+                let (y, d2, r) = self.closest(g, q);
+                if d2 < best {
+                    (face, x, best, region) = (g, y, d2, r);
+                    moved = true;
                 }
             }
             if !moved {
@@ -208,6 +213,9 @@ impl PatchSurface {
         (face, x, best)
     }
 }
+
+/// No second corner: the walk looks at all faces round one corner.
+const NO_CORNER: u32 = u32::MAX;
 
 #[derive(Debug, Clone)]
 pub(super) struct Reference {
@@ -285,7 +293,7 @@ impl Reference {
             Some((f, x, d2)) if d2 <= reach * reach => (f, x),
             _ => {
                 let near = patch.grid.nearest(q.map(|x| x as f32))?;
-                let (x, _) = patch.closest(near.triangle, q);
+                let (x, _, _) = patch.closest(near.triangle, q);
                 (near.triangle, x)
             }
         };
@@ -346,8 +354,10 @@ fn feature_lines(
             let [a, b] = edges[e as usize].0;
             let w = if a == v { b } else { a };
             if w == start {
+                // Back at the start: a loop, unless the start is a corner (then a line
+                // from the corner round to itself).
                 chain.push(w);
-                return (chain, true);
+                return (chain, inner(start));
             }
             chain.push(w);
             if !inner(w) {

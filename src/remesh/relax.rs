@@ -31,9 +31,8 @@ impl Remesher {
                             (Some(u), Some(w), None) => [u, w],
                             _ => return None,
                         };
-                        let line = &self.reference.lines[l as usize];
-                        let s = line.between(self.arc_on(ends[0], l), self.arc_on(ends[1], l));
-                        let (p, size) = line.eval(s);
+                        let s = self.arc_between(ends[0], ends[1], l);
+                        let (p, size) = self.reference.lines[l as usize].eval(s);
                         Some((p, size, s, NONE))
                     }
                     Kind::Interior(_) => {

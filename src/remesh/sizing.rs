@@ -112,22 +112,25 @@ pub fn curvature_size(
     let p = mesh.positions();
     let tris = mesh.triangles();
     let at = |v: u32| p[v as usize].map(f64::from);
-    let face_normal = |f: u32| {
-        let [a, b, c] = tris[f as usize].map(at);
-        let u: [f64; 3] = std::array::from_fn(|k| b[k] - a[k]);
-        let w: [f64; 3] = std::array::from_fn(|k| c[k] - a[k]);
-        [
-            u[1] * w[2] - u[2] * w[1],
-            u[2] * w[0] - u[0] * w[2],
-            u[0] * w[1] - u[1] * w[0],
-        ]
-    };
+    let face_normals: Vec<[f64; 3]> = tris
+        .par_iter()
+        .map(|t| {
+            let [a, b, c] = t.map(at);
+            let u: [f64; 3] = std::array::from_fn(|k| b[k] - a[k]);
+            let w: [f64; 3] = std::array::from_fn(|k| c[k] - a[k]);
+            [
+                u[1] * w[2] - u[2] * w[1],
+                u[2] * w[0] - u[0] * w[2],
+                u[0] * w[1] - u[1] * w[0],
+            ]
+        })
+        .collect();
     // Unit normal of vertex v over its faces of patch `id`.
     let normal_in = |v: u32, id: u32| {
         let mut n = [0.0f64; 3];
         for &f in topology.vertex_faces(v as usize) {
             if face_ids[f as usize] == id {
-                let m = face_normal(f);
+                let m = face_normals[f as usize];
                 for k in 0..3 {
                     n[k] += m[k];
                 }
@@ -140,6 +143,19 @@ pub fn curvature_size(
             n
         }
     };
+    // The normal of every vertex over the patch of its first face, computed once: inside a
+    // patch (most vertices) that is the only one asked for.
+    let first_patch_normals: Vec<[f64; 3]> = (0..mesh.n_vertices() as u32)
+        .into_par_iter()
+        .map(|v| match topology.vertex_faces(v as usize).first() {
+            Some(&f) => normal_in(v, face_ids[f as usize]),
+            None => [0.0; 3],
+        })
+        .collect();
+    let normal_of = |v: u32, id: u32| match topology.vertex_faces(v as usize).first() {
+        Some(&f) if face_ids[f as usize] == id => first_patch_normals[v as usize],
+        _ => normal_in(v, id),
+    };
     let dist = |a: [f64; 3], b: [f64; 3]| {
         ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
     };
@@ -150,24 +166,22 @@ pub fn curvature_size(
             let mut curvature = 0.0f64;
             let mut turn = 0.0f64;
             for &u in topology.neighbors(v as usize) {
-                let ids: Vec<u32> = topology
-                    .vertex_faces(v as usize)
-                    .iter()
-                    .filter(|&&f| tris[f as usize].contains(&u))
-                    .map(|&f| face_ids[f as usize])
-                    .collect();
+                // The patch ids of the (one or two) faces on edge v-u.
+                let mut ids = [u32::MAX; 3];
+                let mut n_ids = 0;
+                for &f in topology.vertex_faces(v as usize) {
+                    if tris[f as usize].contains(&u) && n_ids < 3 {
+                        ids[n_ids] = face_ids[f as usize];
+                        n_ids += 1;
+                    }
+                }
                 let len = dist(x, at(u));
-                if len <= 0.0 {
+                if len <= 0.0 || n_ids != 2 || ids[0] != ids[1] {
                     continue;
                 }
-                match ids.as_slice() {
-                    [i, j] if i == j => {
-                        let (a, b) = (normal_in(v, *i), normal_in(u, *i));
-                        curvature = curvature.max(dist(a, b) / len);
-                        turn = turn.max(dist(a, b));
-                    }
-                    _ => {}
-                }
+                let (a, b) = (normal_of(v, ids[0]), normal_of(u, ids[0]));
+                curvature = curvature.max(dist(a, b) / len);
+                turn = turn.max(dist(a, b));
             }
             if curvature > 0.0 {
                 (0.8 / curvature).min(CREASE * nominal[v as usize] / turn)

@@ -27,41 +27,59 @@ fn along(a: V3, d: V3, t: f64) -> V3 {
 
 /// The point of triangle (a, b, c) closest to p (Ericson, Real-Time Collision Detection, 5.1.5),
 /// in f64 so distances are exact to float precision even for slivers.
+#[inline]
 pub fn closest_point_on_triangle(p: V3, a: V3, b: V3, c: V3) -> V3 {
+    closest_point_and_region(p, a, b, c).0
+}
+
+/// Where on a triangle its closest point to a query lies: lets a walk over a mesh step to
+/// the neighbour across that edge or around that corner, and stop inside a face.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TriangleRegion {
+    /// Corner 0, 1 or 2.
+    Corner(u8),
+    /// Edge i, from corner i to corner (i + 1) % 3.
+    Edge(u8),
+    Inside,
+}
+
+/// [`closest_point_on_triangle`] and the region of the triangle the point is in.
+pub fn closest_point_and_region(p: V3, a: V3, b: V3, c: V3) -> (V3, TriangleRegion) {
+    use TriangleRegion::{Corner, Edge, Inside};
     let ab = sub(b, a);
     let ac = sub(c, a);
     let ap = sub(p, a);
     let d1 = dot(ab, ap);
     let d2 = dot(ac, ap);
     if d1 <= 0.0 && d2 <= 0.0 {
-        return a;
+        return (a, Corner(0));
     }
     let bp = sub(p, b);
     let d3 = dot(ab, bp);
     let d4 = dot(ac, bp);
     if d3 >= 0.0 && d4 <= d3 {
-        return b;
+        return (b, Corner(1));
     }
     let vc = d1 * d4 - d3 * d2;
     if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
         let v = d1 / (d1 - d3);
-        return along(a, ab, v);
+        return (along(a, ab, v), Edge(0));
     }
     let cp = sub(p, c);
     let d5 = dot(ab, cp);
     let d6 = dot(ac, cp);
     if d6 >= 0.0 && d5 <= d6 {
-        return c;
+        return (c, Corner(2));
     }
     let vb = d5 * d2 - d1 * d6;
     if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
         let w = d2 / (d2 - d6);
-        return along(a, ac, w);
+        return (along(a, ac, w), Edge(2));
     }
     let va = d3 * d6 - d5 * d4;
     if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
         let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        return along(b, sub(c, b), w);
+        return (along(b, sub(c, b), w), Edge(1));
     }
     let denom = va + vb + vc;
     if denom.abs() < f64::MIN_POSITIVE || !denom.is_finite() {
@@ -69,7 +87,8 @@ pub fn closest_point_on_triangle(p: V3, a: V3, b: V3, c: V3) -> V3 {
         let edges = [(a, b), (b, c), (c, a)];
         return edges
             .iter()
-            .map(|&(s, e)| {
+            .enumerate()
+            .map(|(i, &(s, e))| {
                 let d = sub(e, s);
                 let len2 = dot(d, d);
                 let t = if len2 > 0.0 {
@@ -77,18 +96,23 @@ pub fn closest_point_on_triangle(p: V3, a: V3, b: V3, c: V3) -> V3 {
                 } else {
                     0.0
                 };
-                along(s, d, t)
+                (along(s, d, t), Edge(i as u8))
             })
-            .min_by(|x, y| dot(sub(p, *x), sub(p, *x)).total_cmp(&dot(sub(p, *y), sub(p, *y))))
-            .unwrap_or(a);
+            .min_by(|(x, _), (y, _)| {
+                dot(sub(p, *x), sub(p, *x)).total_cmp(&dot(sub(p, *y), sub(p, *y)))
+            })
+            .unwrap_or((a, Corner(0)));
     }
     let v = vb / denom;
     let w = vc / denom;
-    [
-        a[0] + ab[0] * v + ac[0] * w,
-        a[1] + ab[1] * v + ac[1] * w,
-        a[2] + ab[2] * v + ac[2] * w,
-    ]
+    (
+        [
+            a[0] + ab[0] * v + ac[0] * w,
+            a[1] + ab[1] * v + ac[1] * w,
+            a[2] + ab[2] * v + ac[2] * w,
+        ],
+        Inside,
+    )
 }
 
 /// Distance (mm) from p to triangle (a, b, c).
@@ -390,5 +414,41 @@ mod tests {
         // Collinear triangle: distance to the segment.
         let line = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]];
         assert!((point_triangle_distance([1.5, 1.0, 0.0], line) - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn regions_name_where_the_closest_point_lies() {
+        use TriangleRegion::{Corner, Edge, Inside};
+        let (a, b, c) = ([0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 2.0, 0.0]);
+        let region = |p| closest_point_and_region(p, a, b, c).1;
+        assert_eq!(region([0.5, 0.5, 1.0]), Inside);
+        assert_eq!(region([-1.0, -1.0, 0.0]), Corner(0));
+        assert_eq!(region([3.0, -0.5, 0.0]), Corner(1));
+        assert_eq!(region([-0.5, 3.0, 0.0]), Corner(2));
+        assert_eq!(region([1.0, -1.0, 0.0]), Edge(0));
+        assert_eq!(region([2.0, 2.0, 0.0]), Edge(1));
+        assert_eq!(region([-1.0, 1.0, 0.0]), Edge(2));
+        // On random triangles the point matches its region: a corner is that corner, an
+        // edge point lies on that edge, an inside point is off every edge.
+        let mut rng = fastrand::Rng::with_seed(7);
+        let mut r = || 4.0 * rng.f64() - 2.0;
+        for _ in 0..2000 {
+            let t: [[f64; 3]; 3] = std::array::from_fn(|_| [r(), r(), r()]);
+            let p = [r(), r(), r()];
+            let (x, region) = closest_point_and_region(p, t[0], t[1], t[2]);
+            let on_segment = |i: usize| {
+                let (s, e) = (t[i], t[(i + 1) % 3]);
+                let d = sub(e, s);
+                let u = (dot(sub(x, s), d) / dot(d, d)).clamp(0.0, 1.0);
+                let y = along(s, d, u);
+                dot(sub(x, y), sub(x, y)).sqrt() < 1e-9
+            };
+            match region {
+                Corner(i) => assert_eq!(x, t[i as usize]),
+                Edge(i) => assert!(on_segment(i as usize), "{t:?} {p:?}"),
+                Inside => assert!((0..3).all(|i| !on_segment(i)), "{t:?} {p:?}"),
+            }
+            assert_eq!(x, closest_point_on_triangle(p, t[0], t[1], t[2]));
+        }
     }
 }
