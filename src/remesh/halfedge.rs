@@ -60,7 +60,7 @@ impl HalfEdgeMesh {
         }
         // Half-edges sorted by their undirected edge pair up with their twins; a pair in the
         // same direction or three on one edge is not a 2-manifold. Sorting instead of hashing:
-        // 0.15 s instead of 4 s for 4 M half-edges.
+        // 0.3 s instead of 4 s for 4 M half-edges.
         let ends = |h: usize| {
             let t = tri[h / 3];
             (t[h % 3], t[(h % 3 + 1) % 3])
