@@ -7,7 +7,7 @@
 use super::halfedge::{next, NONE};
 use super::{dist, dot, min_angle, tri_normal, unit, Kind, Remesher};
 use crate::mesh::{Mesh, Topology};
-use crate::spatial::TriangleGrid;
+use crate::spatial::{closest_point_and_region, TriangleGrid, TriangleRegion};
 use rayon::prelude::*;
 
 /// Input vertices further than this share of their target from the remeshed surface get a
@@ -43,19 +43,7 @@ impl Remesher {
         let mut pinned = vec![false; self.he.pos.len()];
         let mut placed = 0;
         for _round in 0..3 {
-            let Some((snapshot, face_of)) = self.snapshot() else {
-                break;
-            };
-            let grid = TriangleGrid::build(&snapshot);
-            let mut far: Vec<(f64, u32, u32)> = (0..p.len() as u32)
-                .into_par_iter()
-                .filter_map(|x| {
-                    patch_of[x as usize]?;
-                    let near = grid.nearest(p[x as usize])?;
-                    let excess = near.distance - STAND_OFF * size[x as usize];
-                    (excess > 0.0).then(|| (excess, x, face_of[near.triangle as usize]))
-                })
-                .collect();
+            let mut far = self.standing_off(p, &patch_of, size);
             far.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
             let mut changed = 0;
             for (_, x, f) in far {
@@ -100,6 +88,137 @@ impl Remesher {
             }
         }
         placed
+    }
+
+    /// Input vertices (inside a patch) further than `STAND_OFF` of their target from the
+    /// remeshed surface: (excess mm, input vertex, remeshed face nearest it). The distance is
+    /// found by walking the remeshed surface from a remeshed vertex projected near the input
+    /// vertex (a walk ends at a local nearest face, so it may only overstate the distance);
+    /// input vertices with no remeshed vertex within two rings ask a grid over the result.
+    fn standing_off(
+        &self,
+        p: &[[f32; 3]],
+        patch_of: &[Option<u32>],
+        size: &[f64],
+    ) -> Vec<(f64, u32, u32)> {
+        // A remeshed vertex on each input face that has one (per patch, local face index).
+        let ids = self.reference.patch_ids();
+        let index_of = |id: u32| ids.binary_search(&id).ok();
+        let mut owner: Vec<Vec<u32>> = (0..ids.len())
+            .map(|k| vec![NONE; self.reference.patch_faces(k)])
+            .collect();
+        for v in 0..self.he.pos.len() {
+            if let (Kind::Interior(id), face, true) =
+                (self.kind[v], self.hint[v], self.he.vert_alive[v])
+            {
+                let slot = index_of(id).and_then(|k| owner[k].get_mut(face as usize));
+                if let Some(slot) = slot {
+                    *slot = v as u32;
+                }
+            }
+        }
+        let excess_of = |x: u32, d: f64| {
+            let e = d - STAND_OFF * size[x as usize];
+            (e > 0.0).then_some(e)
+        };
+        // Walked where a start is near; `None` marks the input vertices left to the grid.
+        let walked: Vec<Option<(f64, u32, u32)>> = (0..p.len() as u32)
+            .into_par_iter()
+            .map_init(Vec::new, |ring, x| {
+                let id = patch_of[x as usize]?;
+                let Some(k) = index_of(id) else {
+                    return Some((0.0, x, NONE));
+                };
+                let near = |f: u32| owner[k][f as usize];
+                let around = self.reference.faces_around_input(k, x);
+                let start = around
+                    .iter()
+                    .map(|&f| near(f))
+                    .chain(
+                        around
+                            .iter()
+                            .flat_map(|&f| self.reference.faces_touching(k, f))
+                            .map(near),
+                    )
+                    .find(|&v| v != NONE);
+                let v = start?; // none near: left to the grid
+                let q = p[x as usize].map(f64::from);
+                let (d, face) = self.walk_output(v, q, ring);
+                Some(match excess_of(x, d) {
+                    Some(e) => (e, x, face),
+                    None => (0.0, x, NONE),
+                })
+            })
+            .collect();
+        let mut far: Vec<(f64, u32, u32)> = walked
+            .iter()
+            .flatten()
+            .filter(|w| w.2 != NONE)
+            .copied()
+            .collect();
+        let left: Vec<u32> = (0..p.len() as u32)
+            .filter(|&x| patch_of[x as usize].is_some() && walked[x as usize].is_none())
+            .collect();
+        if !left.is_empty() {
+            if let Some((snapshot, face_of)) = self.snapshot() {
+                let grid = TriangleGrid::build(&snapshot);
+                far.par_extend(left.into_par_iter().filter_map(|x| {
+                    let near = grid.nearest(p[x as usize])?;
+                    let e = excess_of(x, near.distance)?;
+                    Some((e, x, face_of[near.triangle as usize]))
+                }));
+            }
+        }
+        far
+    }
+
+    /// Distance (mm) from q to the remeshed surface near vertex v and the face it is on:
+    /// from the nearest face around v, steps across the edge or round the corner where the
+    /// closest point lies while that comes nearer.
+    fn walk_output(&self, v: u32, q: [f64; 3], ring: &mut Vec<u32>) -> (f64, u32) {
+        let closest = |f: u32| {
+            let t = self.he.tri[f as usize].map(|c| self.he.pos[c as usize]);
+            let (y, region) = closest_point_and_region(q, t[0], t[1], t[2]);
+            (dist(y, q), region)
+        };
+        self.he.outgoing(v, ring);
+        let mut best = (f64::INFINITY, NONE, TriangleRegion::Inside);
+        for &e in ring.iter() {
+            let (d, r) = closest(e / 3);
+            if d < best.0 {
+                best = (d, e / 3, r);
+            }
+        }
+        for _ in 0..64 {
+            let (_, f, region) = best;
+            if f == NONE {
+                break;
+            }
+            match region {
+                TriangleRegion::Inside => break,
+                TriangleRegion::Edge(i) => {
+                    let t = self.he.twin(3 * f + u32::from(i));
+                    ring.clear();
+                    if t != NONE {
+                        ring.push(t);
+                    }
+                }
+                TriangleRegion::Corner(i) => {
+                    self.he.outgoing(self.he.tri[f as usize][i as usize], ring);
+                }
+            }
+            let before = best.1;
+            for &e in ring.iter() {
+                let (d, r) = closest(e / 3);
+                if d < best.0 {
+                    best = (d, e / 3, r);
+                }
+            }
+            if best.1 == before {
+                break;
+            }
+        }
+        (best.0, best.1)
     }
 
     /// Moves vertex v (inside patch `id`) onto input point x on input face `face` if the

@@ -225,6 +225,8 @@ pub(super) struct Reference {
     pub on_line: Vec<Option<(u32, f64)>>,
     /// For each input vertex, a face of its patch around it (local index; a start for walks).
     pub start_face: Vec<u32>,
+    /// Which corner of its `start_face` each input vertex is.
+    start_corner: Vec<u8>,
 }
 
 /// Border marker in a feature line's key (the open side of a boundary edge).
@@ -260,11 +262,13 @@ impl Reference {
         let (lines, on_line) = feature_lines(mesh, topology, face_ids, size);
         // Local face indices run in input order within each patch.
         let mut start_face = vec![u32::MAX; mesh.n_vertices()];
+        let mut start_corner = vec![0u8; mesh.n_vertices()];
         let mut next_local = vec![0u32; ids.len()];
         for (f, t) in tris.iter().enumerate() {
             let k = ids.binary_search(&face_ids[f]).unwrap_or(0);
-            for &v in t {
+            for (i, &v) in t.iter().enumerate() {
                 start_face[v as usize] = next_local[k];
+                start_corner[v as usize] = i as u8;
             }
             next_local[k] += 1;
         }
@@ -273,7 +277,33 @@ impl Reference {
             lines,
             on_line,
             start_face,
+            start_corner,
         }
+    }
+
+    /// The patches' ids, ascending: the k-th is the k-th patch.
+    pub fn patch_ids(&self) -> Vec<u32> {
+        self.patches.iter().map(|s| s.id).collect()
+    }
+
+    /// Number of faces of the k-th patch.
+    pub fn patch_faces(&self, k: usize) -> usize {
+        self.patches[k].triangles.len()
+    }
+
+    /// Faces (local indices) of the k-th patch around input vertex x, which must lie in it.
+    pub fn faces_around_input(&self, k: usize, x: u32) -> &[u32] {
+        let patch = &self.patches[k];
+        let f = self.start_face[x as usize] as usize;
+        patch.faces_at(patch.triangles[f][self.start_corner[x as usize] as usize])
+    }
+
+    /// Faces of the k-th patch that share a corner with its face f (f among them).
+    pub fn faces_touching(&self, k: usize, f: u32) -> impl Iterator<Item = u32> + '_ {
+        let patch = &self.patches[k];
+        patch.triangles[f as usize]
+            .into_iter()
+            .flat_map(move |c| patch.faces_at(c).iter().copied())
     }
 
     /// The nearest point of patch `id` to `q`, the target edge length there and the face it is
