@@ -761,4 +761,29 @@ print(pd.GetNumberOfPoints(), fe.GetOutput().GetNumberOfCells(), *sorted(counts.
         expected.push_str(&format!(" ({}, {})", p.id, p.faces.len()));
     }
     assert_eq!(String::from_utf8_lossy(&out.stdout).trim(), expected);
+
+    // The multi-solid ASCII STL through VTK's STL reader: one solid per patch (its tag counts
+    // solids from 0 in file order: the wall, then the patches), with their faces.
+    let script = r#"
+import sys, collections, vtk
+r = vtk.vtkSTLReader(); r.SetFileName(sys.argv[1]); r.ScalarTagsOn(); r.Update()
+pd = r.GetOutput(); tags = pd.GetCellData().GetScalars()
+counts = collections.Counter(int(tags.GetValue(i)) for i in range(pd.GetNumberOfCells()))
+print(pd.GetNumberOfPoints(), *sorted(counts.items()))
+"#;
+    let out = std::process::Command::new("python3")
+        .args(["-c", script])
+        .arg(dir.path().join("vessel_solids.stl"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let mut expected = format!("{} (0, {})", m.n_vertices(), patches.wall_faces);
+    for (k, p) in patches.patches.iter().enumerate() {
+        expected.push_str(&format!(" ({}, {})", k + 1, p.faces.len()));
+    }
+    assert_eq!(String::from_utf8_lossy(&out.stdout).trim(), expected);
 }

@@ -279,11 +279,11 @@ pub fn write_stl_solids(
 }
 
 /// Encodes a multi-solid ASCII STL in memory (see [`write_stl_solids`]). Names keep letters,
-/// digits, `_` and `-`; anything else becomes `_`.
+/// digits, `_` and `-`; anything else becomes `_`. Numbers are written in their shortest form
+/// that reads back to the same `f32`; facets are encoded in parallel chunks, joined in order.
 pub fn encode_stl_solids(mesh: &Mesh, meta: &MeshMeta, solids: &[(&str, &[u32])]) -> Vec<u8> {
-    use std::fmt::Write as _;
-    let p = mesh.positions();
-    let mut out = String::new();
+    use rayon::prelude::*;
+    let mut out = Vec::new();
     for (k, (name, faces)) in solids.iter().enumerate() {
         let name: String = name
             .chars()
@@ -295,25 +295,47 @@ pub fn encode_stl_solids(mesh: &Mesh, meta: &MeshMeta, solids: &[(&str, &[u32])]
                 }
             })
             .collect();
-        let _ = write!(out, "solid {name}");
+        out.extend_from_slice(format!("solid {name}").as_bytes());
         if let (0, Some(space)) = (k, meta.space()) {
-            let _ = write!(out, " SPACE={space}");
+            out.extend_from_slice(format!(" SPACE={space}").as_bytes());
         }
-        out.push('\n');
-        for &f in faces.iter() {
-            let t = mesh.triangles()[f as usize];
-            let n = normalize(triangle_area_vector(mesh, t));
-            let _ = writeln!(out, "  facet normal {:e} {:e} {:e}", n[0], n[1], n[2]);
-            out.push_str("    outer loop\n");
-            for v in t {
-                let q = p[v as usize];
-                let _ = writeln!(out, "      vertex {:e} {:e} {:e}", q[0], q[1], q[2]);
-            }
-            out.push_str("    endloop\n  endfacet\n");
+        out.push(b'\n');
+        let chunks: Vec<Vec<u8>> = faces
+            .par_chunks(4096)
+            .map(|chunk| ascii_facets(mesh, chunk))
+            .collect();
+        for chunk in chunks {
+            out.extend_from_slice(&chunk);
         }
-        let _ = writeln!(out, "endsolid {name}");
+        out.extend_from_slice(format!("endsolid {name}\n").as_bytes());
     }
-    out.into_bytes()
+    out
+}
+
+/// The ASCII `facet` blocks of `faces` (indices into `mesh`).
+fn ascii_facets(mesh: &Mesh, faces: &[u32]) -> Vec<u8> {
+    let p = mesh.positions();
+    let mut out = Vec::with_capacity(faces.len() * 240);
+    let mut number = zmij::Buffer::new();
+    let mut row = |out: &mut Vec<u8>, head: &[u8], xyz: [f32; 3]| {
+        out.extend_from_slice(head);
+        for x in xyz {
+            out.push(b' ');
+            out.extend_from_slice(number.format(x).as_bytes());
+        }
+        out.push(b'\n');
+    };
+    for &f in faces {
+        let t = mesh.triangles()[f as usize];
+        let n = normalize(triangle_area_vector(mesh, t));
+        row(&mut out, b"  facet normal", n);
+        out.extend_from_slice(b"    outer loop\n");
+        for v in t {
+            row(&mut out, b"      vertex", p[v as usize]);
+        }
+        out.extend_from_slice(b"    endloop\n  endfacet\n");
+    }
+    out
 }
 
 /// Encodes binary STL in memory (see [`write_stl`]).

@@ -9,15 +9,21 @@ impl Remesher {
     /// better, and relaxes again, until nothing changes.
     ///
     /// Each round relaxes only around what it changed: a whole relaxation per round cost more
-    /// than the rest of the pass together and undid nothing the local one keeps.
+    /// than the rest of the pass together and undid nothing the local one keeps. After the
+    /// first round only the faces at a changed or moved vertex are looked at again (the others
+    /// are as the last round left them): on 1.3 M triangles the pass took 0.5 s scanning them
+    /// all every round.
     pub(super) fn improve_angles(&mut self) {
         let mut touched = Vec::new();
         let mut ring = Vec::new();
+        // Faces to look at (all of them when `None`); faces made after it was set are.
+        let mut scan: Option<Vec<bool>> = None;
         for _round in 0..8 {
             touched.clear();
-            let changed = self.flip_sharp(30f64.to_radians(), &mut touched);
+            let changed = self.flip_sharp(30f64.to_radians(), scan.as_deref(), &mut touched);
             self.check("flip sharp");
-            let changed = changed + self.collapse_sharp(25f64.to_radians(), &mut touched);
+            let changed =
+                changed + self.collapse_sharp(25f64.to_radians(), scan.as_deref(), &mut touched);
             self.check("collapse sharp");
             if changed == 0 {
                 break;
@@ -35,17 +41,37 @@ impl Remesher {
                 }
             }
             self.relax_and_project(Some(&near));
+            let mut faces = vec![false; self.he.tri.len()];
+            for (v, _) in near.iter().enumerate().filter(|(_, &n)| n) {
+                if self.he.vert_alive[v] {
+                    self.edges_at(v as u32, &mut ring);
+                    for &e in &ring {
+                        faces[(e / 3) as usize] = true;
+                    }
+                }
+            }
+            scan = Some(faces);
         }
+    }
+
+    /// Whether face f is to be looked at this round (see [`Self::improve_angles`]).
+    fn in_scan(scan: Option<&[bool]>, f: usize) -> bool {
+        scan.is_none_or(|s| s.get(f).copied().unwrap_or(true))
     }
 
     fn face_min_angle(&self, f: usize) -> f64 {
         min_angle(self.he.tri[f].map(|v| self.he.pos[v as usize]))
     }
 
-    fn collapse_sharp(&mut self, limit: f64, touched: &mut Vec<u32>) -> usize {
+    fn collapse_sharp(
+        &mut self,
+        limit: f64,
+        scan: Option<&[bool]>,
+        touched: &mut Vec<u32>,
+    ) -> usize {
         let mut count = 0;
         for f in 0..self.he.tri.len() {
-            if !self.he.face_alive[f] {
+            if !self.he.face_alive[f] || !Self::in_scan(scan, f) {
                 continue;
             }
             let worst = self.face_min_angle(f);
@@ -91,10 +117,13 @@ impl Remesher {
         count
     }
 
-    fn flip_sharp(&mut self, limit: f64, touched: &mut Vec<u32>) -> usize {
+    fn flip_sharp(&mut self, limit: f64, scan: Option<&[bool]>, touched: &mut Vec<u32>) -> usize {
         let n_he = self.he.tri.len() as u32 * 3;
         let mut count = 0;
         for h in 0..n_he {
+            if !Self::in_scan(scan, (h / 3) as usize) {
+                continue;
+            }
             let Some([a, b, c, d]) = self.flippable(h) else {
                 continue;
             };
