@@ -223,7 +223,7 @@ fn check_prints_the_values_that_will_be_used() {
         "method = \"hc\"",
         "lambda = 0.5",
         "beta = 0.5",
-        "tau = 0.7",
+        "tau = \"auto\"",
         "references = [\"vein\", \"trachea\"]",
         "caps = \"smooth\"",
     ] {

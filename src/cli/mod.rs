@@ -231,9 +231,10 @@ pub struct ContextArgs {
     /// Stack axis: `auto` (estimated from the mesh) or X,Y,Z.
     #[arg(long, default_value = "auto", value_parser = parse_axis)]
     pub axis: AxisArg,
-    /// Orientation change above which a vertex is a staircase vertex.
-    #[arg(long, default_value_t = 0.7)]
-    pub tau: f32,
+    /// Orientation change above which a vertex is a staircase vertex: a number in [0, 1] (the
+    /// paper's 0.7) or `auto` (chosen from the mesh's own orientation changes).
+    #[arg(long, default_value = "auto")]
+    pub tau: destair::weights::Tau,
     /// Reach of a staircase along the surface (mm).
     #[arg(long, default_value_t = 3.0)]
     pub tau_max: f32,
@@ -295,13 +296,11 @@ impl ContextArgs {
 
     /// Validates value ranges clap cannot express.
     pub fn check(&self) -> Result<(), UsageError> {
-        let valid = (0.0..=1.0).contains(&self.tau)
-            && (0.0..=1.0).contains(&self.beta_min)
-            && self.tau_max.is_finite()
-            && self.tau_max > 0.0;
+        let valid =
+            (0.0..=1.0).contains(&self.beta_min) && self.tau_max.is_finite() && self.tau_max > 0.0;
         if !valid {
             return Err(UsageError(
-                "--tau and --beta-min must lie in [0, 1] and --tau-max above 0".into(),
+                "--beta-min must lie in [0, 1] and --tau-max above 0".into(),
             ));
         }
         Ok(())

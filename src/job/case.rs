@@ -531,6 +531,7 @@ fn process_structure(
                 summary.axis_source = "label_map_header".into();
             }
         }
+        report.warnings.extend(summary.warnings.iter().cloned());
         report.context = Some(summary);
         report.method = Some(method);
         report.smooth = Some(stats);

@@ -116,7 +116,8 @@ pub struct Settings {
     pub staircase: Option<bool>,
     /// "auto" or [x, y, z].
     pub axis: Option<toml::Value>,
-    pub tau: Option<f32>,
+    /// "auto" or a number in [0, 1].
+    pub tau: Option<toml::Value>,
     pub tau_max: Option<f32>,
     pub beta_min: Option<f32>,
     /// "preserve" or "smooth".

@@ -7,7 +7,7 @@ use crate::cfd::{CfdOptions, CfdProfile, Inlet};
 use crate::extract::constrained::{LabelSmoothing, Noise, Surface, Thin};
 use crate::smooth::{MethodKind, MethodParams};
 use crate::weights::{
-    AxisChoice, CapPolicy, Combine, ContextParams, DistanceScaling, StaircaseParams,
+    AxisChoice, CapPolicy, Combine, ContextParams, DistanceScaling, StaircaseParams, Tau,
 };
 use serde::Serialize;
 
@@ -90,7 +90,11 @@ impl StructureSettings {
             AxisChoice::Given(a) => Value::Array(a.iter().map(|&x| f(x)).collect()),
         };
         t.push(("axis", axis));
-        t.push(("tau", f(c.staircase_params.tau)));
+        let tau = match c.staircase_params.tau {
+            Tau::Auto => Value::String("auto".into()),
+            Tau::Fixed(x) => f(x),
+        };
+        t.push(("tau", tau));
         t.push(("tau_max", f(c.staircase_params.tau_max_mm)));
         t.push(("beta_min", f(c.staircase_params.beta_min)));
         let caps = match c.caps {
@@ -321,7 +325,14 @@ pub(super) fn resolve(s: &Settings) -> Result<StructureSettings, String> {
         s.distance_scaling.as_deref().unwrap_or("linear").parse()?;
     let defaults = StaircaseParams::default();
     let staircase_params = StaircaseParams {
-        tau: unit("tau", s.tau)?.unwrap_or(defaults.tau),
+        tau: match &s.tau {
+            None => defaults.tau,
+            Some(toml::Value::String(text)) => text.parse()?,
+            Some(v) => match v.as_float().or(v.as_integer().map(|i| i as f64)) {
+                Some(x) => Tau::Fixed(unit("tau", Some(x as f32))?.unwrap_or(0.0)),
+                None => return Err(format!("tau = {v} must be \"auto\" or a number in [0, 1]")),
+            },
+        },
         tau_max_mm: positive("tau_max", s.tau_max)?.unwrap_or(defaults.tau_max_mm),
         beta_min: unit("beta_min", s.beta_min)?.unwrap_or(defaults.beta_min),
     };

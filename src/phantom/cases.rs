@@ -29,14 +29,17 @@ pub const CASE_NAMES: [&str; 11] = [
 ];
 
 /// Smooth-surface variants (marching cubes on a smooth field rather than a binary mask): the
-/// paper's Gaussian-filtered sphere, where the only staircase is the removed part of the top slice.
-pub const SMOOTH_CASE_NAMES: [&str; 6] = [
+/// paper's sphere, where the only staircase is the removed part of the top slice, and the
+/// Gaussian-filtered sphere with smooth staircases ([`super::gaussian`]).
+pub const SMOOTH_CASE_NAMES: [&str; 8] = [
     "sphere-smooth",
     "sphere-smooth-1-16",
     "sphere-smooth-1-8",
     "sphere-smooth-1-4",
     "sphere-smooth-1-2",
     "sphere-smooth-top",
+    "sphere-gauss",
+    "sphere-gauss-cut",
 ];
 
 /// Options shared by all phantoms.
@@ -109,6 +112,15 @@ fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 
 /// Generates a named case (see [`CASE_NAMES`]).
 pub fn named_case(name: &str, options: &PhantomOptions) -> Result<PhantomCase, PhantomError> {
+    if let Some(suffix) = name.strip_prefix("sphere-gauss") {
+        if suffix.is_empty() || suffix == "-cut" {
+            return Ok(super::gaussian::gauss_sphere(
+                name,
+                suffix == "-cut",
+                options,
+            ));
+        }
+    }
     let mut rng = fastrand::Rng::with_seed(options.seed);
     if let Some(fraction) = name.strip_prefix("sphere-smooth").and_then(cut_fraction) {
         return Ok(smooth_sphere(name, fraction, &mut rng, options));
@@ -490,7 +502,7 @@ pub fn big_case(n_triangles: u64, options: &PhantomOptions) -> PhantomCase {
 
 /// Extracts each structure, applies the rotation and records what was made.
 /// Rotates a finished mesh about the volume centre (x first, then y).
-fn rotate(mesh: &mut Mesh, volume: &LabelVolume, options: &PhantomOptions) {
+pub(super) fn rotate(mesh: &mut Mesh, volume: &LabelVolume, options: &PhantomOptions) {
     if options.rotate_x_deg == 0.0 && options.rotate_y_deg == 0.0 {
         return;
     }

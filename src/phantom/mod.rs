@@ -7,5 +7,6 @@ pub mod volume;
 pub use marching_cubes::{extract_surface, extract_surface_interpolated, BorderEnds};
 pub use volume::{LabelVolume, Shape};
 pub mod cases;
+pub mod gaussian;
 
 pub use cases::{big_case, cohort_case, named_case, write_case, PhantomCase, PhantomOptions};

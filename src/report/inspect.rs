@@ -88,12 +88,18 @@ pub struct ContextSummary {
     pub n_staircase_vertices: usize,
     /// Staircase vertices as a share of all vertices.
     pub staircase_share: f64,
+    /// The orientation-change threshold used (absent when no axis was used).
+    pub tau: Option<f32>,
+    /// Whether `tau = "auto"` chose it.
+    pub tau_auto: bool,
     pub n_flat_regions: usize,
     pub n_terraces: usize,
     pub caps: Vec<CapSummary>,
     /// Smallest distance to the reference structures (mm), when references were given.
     pub reference_distance_min_mm: Option<f64>,
     pub weights: WeightStats,
+    /// What a user should know, e.g. a clear stack axis with no staircase vertex on it.
+    pub warnings: Vec<String>,
 }
 
 /// Summarises a context analysis.
@@ -106,6 +112,21 @@ pub fn context_summary(ctx: &Context, n_vertices: usize) -> ContextSummary {
         None => ("off", None),
     };
     let n_staircase_vertices = ctx.staircase.as_ref().map_or(0, |s| s.n_staircase());
+    let mut warnings = Vec::new();
+    if let (Some(s), Some(a)) = (&ctx.staircase, ctx.axis) {
+        if n_staircase_vertices == 0 {
+            let how = if s.tau_auto {
+                "chosen from this mesh; the surface has no staircase that stands out from its own variation".to_string()
+            } else {
+                "try tau = \"auto\" for surfaces from smoothed images or smoothed at export"
+                    .to_string()
+            };
+            warnings.push(format!(
+                "the stack axis ({:.3}, {:.3}, {:.3}) is clear, but no vertex changes orientation by more than tau = {:.3} ({how}): staircase weighting leaves only the floor beta_min",
+                a[0], a[1], a[2], s.tau
+            ));
+        }
+    }
     let w = ctx.weights.as_slice();
     let weights = WeightStats {
         min: w.iter().copied().fold(f32::INFINITY, f32::min),
@@ -120,6 +141,8 @@ pub fn context_summary(ctx: &Context, n_vertices: usize) -> ContextSummary {
         axis_confidence,
         n_staircase_vertices,
         staircase_share: n_staircase_vertices as f64 / n_vertices.max(1) as f64,
+        tau: ctx.staircase.as_ref().map(|s| s.tau),
+        tau_auto: ctx.staircase.as_ref().is_some_and(|s| s.tau_auto),
         n_flat_regions: ctx.caps.n_regions,
         n_terraces: ctx.caps.n_terraces,
         caps: ctx
@@ -137,6 +160,7 @@ pub fn context_summary(ctx: &Context, n_vertices: usize) -> ContextSummary {
             .as_ref()
             .map(|d| d.iter().copied().fold(f64::INFINITY, f64::min)),
         weights,
+        warnings,
     }
 }
 
@@ -162,9 +186,14 @@ impl ContextSummary {
                 let _ = writeln!(s, "  stack axis: not used");
             }
         }
+        let tau = match self.tau {
+            Some(t) if self.tau_auto => format!(", tau {t:.3} (auto)"),
+            Some(t) => format!(", tau {t:.3}"),
+            None => String::new(),
+        };
         let _ = writeln!(
             s,
-            "  staircase vertices {} ({:.2} %)",
+            "  staircase vertices {} ({:.2} %){tau}",
             self.n_staircase_vertices,
             100.0 * self.staircase_share
         );
@@ -190,6 +219,9 @@ impl ContextSummary {
         }
         let w = &self.weights;
         let _ = writeln!(s, "  weights min {:.3} max {:.3} mean {:.3}; {} vertices fixed (0), {} fully smoothed (1)", w.min, w.max, w.mean, w.n_zero, w.n_one);
+        for w in &self.warnings {
+            let _ = writeln!(s, "  warning: {w}");
+        }
         s
     }
 }

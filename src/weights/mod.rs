@@ -7,7 +7,7 @@ pub mod staircase;
 
 pub use context::{context_weights, AxisChoice, CapPolicy, Context, ContextParams};
 pub use distance::{distance_weights, reference_distances, DistanceScaling};
-pub use staircase::{staircase_weights, StaircaseParams, StaircaseWeights};
+pub use staircase::{auto_tau, staircase_weights, StaircaseParams, StaircaseWeights, Tau};
 
 use thiserror::Error;
 

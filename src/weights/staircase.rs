@@ -11,11 +11,84 @@ use serde::Serialize;
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
+/// The orientation-change threshold above which a vertex is a staircase vertex.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Tau {
+    /// This value (paper: 0.7).
+    Fixed(f32),
+    /// Chosen from the mesh's own distribution ([`auto_tau`]).
+    Auto,
+}
+
+impl Serialize for Tau {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match self {
+            Tau::Fixed(t) => s.serialize_f32(*t),
+            Tau::Auto => s.serialize_str("auto"),
+        }
+    }
+}
+
+impl std::fmt::Display for Tau {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Tau::Fixed(t) => write!(f, "{t}"),
+            Tau::Auto => f.write_str("auto"),
+        }
+    }
+}
+
+impl std::str::FromStr for Tau {
+    type Err = String;
+    /// `auto` or a number in [0, 1].
+    fn from_str(text: &str) -> Result<Tau, String> {
+        if text.trim() == "auto" {
+            return Ok(Tau::Auto);
+        }
+        match text.trim().parse::<f32>() {
+            Ok(t) if (0.0..=1.0).contains(&t) => Ok(Tau::Fixed(t)),
+            _ => Err(format!(
+                "tau = {text:?} must be \"auto\" or a number in [0, 1]"
+            )),
+        }
+    }
+}
+
+/// Lowest and highest threshold [`auto_tau`] chooses: 0.2 is the lowest the paper uses (for
+/// caps rounded by 50 Laplace iterations), 0.7 its default for marching-cubes surfaces.
+pub const AUTO_TAU_RANGE: (f32, f32) = (0.2, 0.7);
+
+/// Standard deviations above the mean orientation change where [`auto_tau`] puts the threshold.
+pub const AUTO_TAU_SIGMAS: f64 = 3.5;
+
+/// The threshold for `tau = "auto"`: the mean orientation change of the mesh plus 3.5 standard
+/// deviations, within [0.2, 0.7]. On a binary marching-cubes surface staircases make up a large
+/// share of the vertices, the spread is wide and the rule gives the paper's 0.7 (every binary
+/// phantom of `destair phantom`); on a surface from a smoothed image (or smoothed at export) the
+/// bulk is the surface's own gentle variation and the threshold lands just above it, where
+/// softened staircases stand out (Gaussian-filtered cut sphere: 0.42, the uncut one 0.37 with
+/// no vertex above it). Summed in order, so the same for any thread count.
+pub fn auto_tau(change: &[f32]) -> f32 {
+    if change.is_empty() {
+        return AUTO_TAU_RANGE.1;
+    }
+    let n = change.len() as f64;
+    let mean = change.iter().map(|&c| c as f64).sum::<f64>() / n;
+    let var = change
+        .iter()
+        .map(|&c| (c as f64 - mean).powi(2))
+        .sum::<f64>()
+        / n;
+    let tau = (mean + AUTO_TAU_SIGMAS * var.sqrt()) as f32;
+    tau.clamp(AUTO_TAU_RANGE.0, AUTO_TAU_RANGE.1)
+}
+
 /// Parameters of staircase weighting.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct StaircaseParams {
-    /// Orientation change above which a vertex is a staircase vertex (paper: 0.7).
-    pub tau: f32,
+    /// Orientation change above which a vertex is a staircase vertex (paper: 0.7; default
+    /// `auto`, see [`auto_tau`]).
+    pub tau: Tau,
     /// Reach of a staircase into its surroundings, along the surface (mm; paper: 3).
     pub tau_max_mm: f32,
     /// Weight floor, so artifact-free areas are still smoothed a little (paper: 0.1; 0 keeps them fixed).
@@ -25,7 +98,7 @@ pub struct StaircaseParams {
 impl Default for StaircaseParams {
     fn default() -> Self {
         Self {
-            tau: 0.7,
+            tau: Tau::Auto,
             tau_max_mm: 3.0,
             beta_min: 0.1,
         }
@@ -41,6 +114,10 @@ pub struct StaircaseWeights {
     pub is_staircase: Vec<bool>,
     /// Geodesic distance to the nearest staircase vertex (mm), infinite beyond tau_max.
     pub distance_mm: Vec<f32>,
+    /// The threshold used (the given one, or the one [`auto_tau`] chose).
+    pub tau: f32,
+    /// Whether [`auto_tau`] chose it.
+    pub tau_auto: bool,
 }
 
 impl StaircaseWeights {
@@ -140,7 +217,11 @@ pub fn staircase_weights(
 ) -> StaircaseWeights {
     let theta = face_orientation(mesh, axis);
     let change = orientation_change(topology, &theta);
-    let is_staircase: Vec<bool> = change.iter().map(|&c| c > params.tau).collect();
+    let tau = match params.tau {
+        Tau::Fixed(t) => t,
+        Tau::Auto => auto_tau(&change),
+    };
+    let is_staircase: Vec<bool> = change.iter().map(|&c| c > tau).collect();
     let distance_mm = geodesic_distance(mesh, topology, &is_staircase, params.tau_max_mm as f64);
     // Scale by the largest distance reached (at most tau_max).
     let max_d = distance_mm
@@ -167,6 +248,8 @@ pub fn staircase_weights(
             .unwrap_or_else(|_| VertexWeights::uniform(mesh.n_vertices())),
         is_staircase,
         distance_mm,
+        tau,
+        tau_auto: params.tau == Tau::Auto,
     }
 }
 
@@ -200,7 +283,7 @@ mod tests {
         assert_eq!(theta[0], 0.0);
         assert_eq!(theta[4], 1.0); // the wall
         let params = StaircaseParams {
-            tau: 0.7,
+            tau: Tau::Fixed(0.7),
             tau_max_mm: 10.0,
             beta_min: 0.0,
         };

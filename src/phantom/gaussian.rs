@@ -1,0 +1,187 @@
+//! Phantoms surfaced from Gaussian-filtered label volumes, as marching cubes sees a smoothed
+//! image: the sphere of Moench 2012 Table 3, with parts of some slices deleted before the
+//! filter, so its staircases are smooth ramps rather than sharp steps (what most exported
+//! surfaces look like, and what a fixed orientation-change threshold of 0.7 misses).
+
+use super::cases::{CaseInfo, PhantomCase, PhantomOptions, StructureInfo};
+use super::marching_cubes::extract_surface_interpolated;
+use super::volume::LabelVolume;
+use rayon::prelude::*;
+
+/// Parts of the sphere deleted slice-wise before filtering: the voxels of the slices whose
+/// centres lie `z_mm` (a half-open range, relative to the sphere centre) above the centre,
+/// within the sector `sector_deg` (angle about the z axis, from +x towards +y), and deeper than
+/// `depth_mm` inside the sphere's outline in their own slice are kept; the rest of the sector
+/// (the outer `depth_mm`) is removed. `depth_mm` infinite removes the whole sector.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SliceCut {
+    pub z_mm: (f64, f64),
+    pub sector_deg: (f64, f64),
+    pub depth_mm: f64,
+}
+
+/// The cuts of `sphere-gauss-cut` (radius 50 mm on 1 x 1 x 3 mm slices): a groove four slices
+/// high and 4 mm deep above the equator, a notch two slices high and 3 mm deep below it, and a
+/// quarter of the topmost slice (as in Table 5).
+pub const SPHERE_CUTS: [SliceCut; 3] = [
+    SliceCut {
+        z_mm: (12.0, 24.0),
+        sector_deg: (0.0, 120.0),
+        depth_mm: 4.0,
+    },
+    SliceCut {
+        z_mm: (-27.0, -21.0),
+        sector_deg: (180.0, 260.0),
+        depth_mm: 3.0,
+    },
+    SliceCut {
+        z_mm: (45.0, 51.0),
+        sector_deg: (0.0, 90.0),
+        depth_mm: f64::INFINITY,
+    },
+];
+
+/// Gaussian filter width of `sphere-gauss-cut`, in voxels per axis (1 x 1 x 3 mm).
+pub const SPHERE_SIGMA_VOXELS: [f64; 3] = [1.0, 1.0, 1.0];
+
+/// The cut sphere before and after its cuts (label 1), on its 128 x 128 x 43 grid of
+/// 1 x 1 x 3 mm voxels, and its centre (mm; jittered by the seed).
+pub fn cut_sphere_volumes(seed: u64) -> (LabelVolume, LabelVolume, [f64; 3]) {
+    sphere_volumes(seed, &SPHERE_CUTS)
+}
+
+fn sphere_volumes(seed: u64, cuts: &[SliceCut]) -> (LabelVolume, LabelVolume, [f64; 3]) {
+    let mut rng = fastrand::Rng::with_seed(seed);
+    let spacing = [1.0, 1.0, 3.0];
+    let mut whole = LabelVolume::new([128, 128, 43], spacing, [0.0; 3]);
+    let centre: [f64; 3] = std::array::from_fn(|k| 64.0 + (rng.f64() - 0.5) * spacing[k]);
+    let radius = 50.0;
+    whole.paint(
+        &super::volume::Shape::Sphere {
+            center: centre,
+            radius,
+        },
+        1,
+    );
+    let mut cut = whole.clone();
+    for c in cuts {
+        let lo = [0.0, 0.0, centre[2] + c.z_mm.0];
+        let hi = [128.0, 128.0, centre[2] + c.z_mm.1];
+        cut.paint_where(lo, hi, 0, |p, current| {
+            let dz = p[2] - centre[2];
+            if current != 1 || dz < c.z_mm.0 || dz >= c.z_mm.1 {
+                return false;
+            }
+            let (dx, dy) = (p[0] - centre[0], p[1] - centre[1]);
+            let angle = dy.atan2(dx).to_degrees().rem_euclid(360.0);
+            let outline = (radius * radius - dz * dz).max(0.0).sqrt();
+            angle >= c.sector_deg.0
+                && angle < c.sector_deg.1
+                && (dx * dx + dy * dy).sqrt() > outline - c.depth_mm
+        });
+    }
+    (whole, cut, centre)
+}
+
+/// The indicator of `label` filtered with a Gaussian of `sigma_voxels` per axis (separable,
+/// truncated at 3 sigma, normalised; background beyond the border), one value per voxel in
+/// [0, 1].
+pub fn gaussian_indicator(volume: &LabelVolume, label: u16, sigma_voxels: [f64; 3]) -> Vec<f32> {
+    let mut field: Vec<f32> = volume
+        .labels
+        .par_iter()
+        .map(|&l| if l == label { 1.0 } else { 0.0 })
+        .collect();
+    let dims = volume.dims;
+    let stride = [1, dims[0], dims[0] * dims[1]];
+    for axis in 0..3 {
+        let sigma = sigma_voxels[axis];
+        if sigma <= 0.0 || !sigma.is_finite() {
+            continue;
+        }
+        let reach = (3.0 * sigma).ceil() as isize;
+        let mut kernel: Vec<f32> = (-reach..=reach)
+            .map(|d| (-(d * d) as f64 / (2.0 * sigma * sigma)).exp() as f32)
+            .collect();
+        let sum: f32 = kernel.iter().sum();
+        kernel.iter_mut().for_each(|w| *w /= sum);
+        let n = dims[axis] as isize;
+        let src = field.clone();
+        field.par_iter_mut().enumerate().for_each(|(idx, out)| {
+            let at = (idx / stride[axis]) as isize % n;
+            let mut acc = 0.0;
+            for (d, w) in (-reach..=reach).zip(&kernel) {
+                let q = at + d;
+                if (0..n).contains(&q) {
+                    acc += w * src[(idx as isize + d * stride[axis] as isize) as usize];
+                }
+            }
+            *out = acc;
+        });
+    }
+    field
+}
+
+/// `sphere-gauss-cut` (`cut`) or `sphere-gauss` (the whole sphere): the sphere's label
+/// volume filtered with a Gaussian of one voxel per axis and surfaced where the filtered
+/// indicator crosses 1/2 (Moench 2012, Table 3).
+pub fn gauss_sphere(name: &str, cut: bool, options: &PhantomOptions) -> PhantomCase {
+    let (_, volume, _) = sphere_volumes(options.seed, if cut { &SPHERE_CUTS } else { &[] });
+    let smooth = gaussian_indicator(&volume, 1, SPHERE_SIGMA_VOXELS);
+    // Inside where the filtered indicator exceeds 1/2; the surface where it crosses 1/2.
+    let mut inside = volume.clone();
+    inside
+        .labels
+        .par_iter_mut()
+        .zip(&smooth)
+        .for_each(|(l, &g)| *l = u16::from(g > 0.5));
+    let field: Vec<f32> = smooth.iter().map(|&g| 0.5 - g).collect();
+    let mut mesh = extract_surface_interpolated(&inside, 1, options.ends, &field);
+    super::cases::rotate(&mut mesh, &inside, options);
+    PhantomCase {
+        info: CaseInfo {
+            name: name.to_string(),
+            description: if cut {
+                "sphere of radius 50 mm on a 1 x 1 x 3 mm grid with parts of seven slices deleted (a groove, a notch, a quarter of the top slice), Gaussian-filtered (sigma one voxel) and surfaced at 1/2: smooth staircases (Moench 2012, Table 3)"
+            } else {
+                "sphere of radius 50 mm on a 1 x 1 x 3 mm grid, Gaussian-filtered (sigma one voxel) and surfaced at 1/2: no staircase but the slices' own faint ripple"
+            }
+            .into(),
+            seed: options.seed,
+            dims: inside.dims,
+            spacing_mm: inside.spacing,
+            origin_mm: inside.origin,
+            rotate_x_deg: options.rotate_x_deg,
+            rotate_y_deg: options.rotate_y_deg,
+            ends: options.ends,
+            structures: vec![StructureInfo {
+                name: "sphere".into(),
+                label: 1,
+                n_voxels: inside.count(1),
+                n_vertices: mesh.n_vertices(),
+                n_triangles: mesh.n_triangles(),
+            }],
+        },
+        meshes: vec![("sphere".into(), mesh)],
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_filter_keeps_the_mass_and_blurs_a_step_symmetrically() {
+        let mut v = LabelVolume::new([20, 9, 9], [1.0; 3], [0.0; 3]);
+        v.paint_where([0.0; 3], [9.0, 9.0, 9.0], 1, |_, _| true);
+        let g = gaussian_indicator(&v, 1, [1.0, 0.0, 0.0]);
+        let row: Vec<f32> = (0..20).map(|i| g[v.index(i, 4, 4)]).collect();
+        // A step between x = 9 and 10: values mirror about 1/2 there.
+        for d in 0..4 {
+            assert!((row[9 - d] + row[10 + d] - 1.0).abs() < 1e-6, "{row:?}");
+        }
+        assert!(row[9] > 0.5 && row[10] < 0.5);
+        // Far from the step and the border: unchanged.
+        assert!((row[4] - 1.0).abs() < 1e-6 && row[15].abs() < 1e-6);
+    }
+}
