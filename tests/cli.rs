@@ -565,7 +565,14 @@ fn the_cfd_profile_refuses_a_vessel_that_smoothing_pinched() {
             &input,
             &d.join(out),
             method,
-            &["--iterations", "20", "--profile", "cfd"],
+            &[
+                "--iterations",
+                "20",
+                "--profile",
+                "cfd",
+                "--staircase",
+                "false",
+            ],
         )
     };
     // Uniform Laplace shrinks the two-voxel vessel to a third of its narrowest lumen.
@@ -578,4 +585,88 @@ fn the_cfd_profile_refuses_a_vessel_that_smoothing_pinched() {
     let kept = run("taubin", "taubin.ply");
     assert_ok(&kept);
     assert!(d.join("taubin_patches.json").is_file());
+}
+
+/// `smooth` with a cohort's settings gives the bytes the cohort run gives: the same defaults
+/// (Laplace+HC, staircase weighting on, caps preserved, tau auto) and the same meaning of each
+/// switch, whichever way round they are set.
+#[test]
+fn smooth_gives_the_cohort_runs_bytes_for_the_same_settings() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    assert_ok(&destair(&[
+        "phantom",
+        "cap-cylinder",
+        "--out",
+        root.join("phantom").to_str().unwrap(),
+    ]));
+    std::fs::create_dir_all(root.join("cases/c1")).unwrap();
+    let input = root.join("cases/c1/vessel.ply");
+    std::fs::copy(root.join("phantom/cap-cylinder.ply"), &input).unwrap();
+    for (i, (config, flags)) in [
+        ("", vec![]),
+        (
+            "method = \"hc\"\nstaircase = true\ncaps = \"preserve\"\ntau = \"auto\"\n",
+            vec![
+                "--method",
+                "hc",
+                "--staircase",
+                "--caps",
+                "preserve",
+                "--tau",
+                "auto",
+            ],
+        ),
+        ("staircase = false\n", vec!["--staircase", "false"]),
+        ("caps = \"smooth\"\n", vec!["--caps", "smooth"]),
+        (
+            "method = \"laplace\"\nstaircase = false\ncaps = \"smooth\"\n",
+            vec![
+                "--method",
+                "laplace",
+                "--staircase",
+                "false",
+                "--caps",
+                "smooth",
+            ],
+        ),
+        (
+            "method = \"taubin\"\ntau = 0.3\nbeta_min = 0.0\n",
+            vec!["--method", "taubin", "--tau", "0.3", "--beta-min", "0"],
+        ),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let out = root.join(format!("out{i}"));
+        let toml = format!(
+            "[input]\nroots = [\"cases\"]\ncase_depth = 1\n\n[output]\nroot = \"{}\"\n\n[defaults]\n{config}",
+            out.file_name().unwrap().to_str().unwrap()
+        );
+        let config_path = root.join(format!("c{i}.toml"));
+        std::fs::write(&config_path, toml).unwrap();
+        assert_ok(&destair(&["run", config_path.to_str().unwrap()]));
+        let single = root.join(format!("single{i}.ply"));
+        let mut args = vec![
+            "smooth",
+            input.to_str().unwrap(),
+            "-o",
+            single.to_str().unwrap(),
+        ];
+        if !flags.contains(&"--method") {
+            args.extend(["--method", "hc"]);
+        }
+        args.extend(flags.iter().copied());
+        assert_ok(&destair(&args));
+        let cohort = std::fs::read(out.join("c1/vessel.ply")).unwrap();
+        assert!(
+            cohort == std::fs::read(&single).unwrap(),
+            "settings {i}: {config:?} / {flags:?} differ"
+        );
+        if i > 0 {
+            // Each switch changes the result (the settings are not all ignored).
+            let first = std::fs::read(root.join("out0/c1/vessel.ply")).unwrap();
+            assert_eq!(cohort == first, i == 1, "settings {i}");
+        }
+    }
 }

@@ -12,8 +12,9 @@ pub struct Args {
     /// Output mesh (.ply or .stl); vertex order is kept.
     #[arg(short, long)]
     output: PathBuf,
-    /// laplace, hc, taubin, mcf, npc, cell-size, cell-edge or diamond.
-    #[arg(long)]
+    /// laplace, hc, taubin, mcf, npc, cell-size, cell-edge or diamond (default hc, as in a
+    /// cohort config).
+    #[arg(long, default_value = "hc")]
     method: destair::smooth::MethodKind,
     /// Iterations (the maximum for cell-size, cell-edge and diamond, which stop on convergence).
     #[arg(long)]
@@ -45,8 +46,11 @@ pub struct Args {
     /// Add `weight` and `displacement` (mm) vertex properties to a PLY output.
     #[arg(long)]
     annotate: bool,
-    /// Weight by staircases (Moench): smooth artifacts, keep the rest.
-    #[arg(long)]
+    /// Weight by staircases (Moench): smooth artifacts, keep the rest. On by default, as in a
+    /// cohort config; `--staircase false` turns it off (caps are still kept unless `--caps
+    /// smooth`).
+    #[arg(long, default_value_t = true, num_args = 0..=1, default_missing_value = "true",
+          action = clap::ArgAction::Set)]
     staircase: bool,
     /// Allow the output to replace the input file.
     #[arg(long)]
@@ -242,9 +246,10 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     let kind = method;
     let method = kind.build(&params, voxel.unwrap_or([1.0; 3]));
     let iterations = iterations.unwrap_or(kind.default_iterations());
-    let context_on = staircase || !ctx.references.is_empty();
+    // Context weights always (as a cohort computes them): staircases when on, caps as
+    // `--caps` says, distances when references are given.
     let weights = match weights {
-        None if context_on => {
+        None => {
             let grids = ctx.reference_grids()?;
             let refs: Vec<&destair::spatial::TriangleGrid> = grids.iter().collect();
             let analysis =
@@ -253,7 +258,6 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
             eprint!("{}", summary.to_text());
             analysis.weights
         }
-        None => destair::weights::VertexWeights::uniform(mesh.n_vertices()),
         Some(path) => {
             let options = ReadOptions {
                 keep_vertex_properties: true,
