@@ -746,21 +746,11 @@ fe.BoundaryEdgesOn(); fe.NonManifoldEdgesOn(); fe.FeatureEdgesOff(); fe.Manifold
 fe.Update()
 print(pd.GetNumberOfPoints(), fe.GetOutput().GetNumberOfCells(), *sorted(counts.items()))
 "#;
-    let out = std::process::Command::new("python3")
-        .args(["-c", script])
-        .arg(dir.path().join("vessel.vtp"))
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
     let mut expected = format!("{} 0 (1, {})", m.n_vertices(), patches.wall_faces);
     for p in &patches.patches {
         expected.push_str(&format!(" ({}, {})", p.id, p.faces.len()));
     }
-    assert_eq!(String::from_utf8_lossy(&out.stdout).trim(), expected);
+    assert_eq!(python(script, &dir.path().join("vessel.vtp")), expected);
 
     // The multi-solid ASCII STL through VTK's STL reader: one solid per patch (its tag counts
     // solids from 0 in file order: the wall, then the patches), with their faces.
@@ -771,9 +761,21 @@ pd = r.GetOutput(); tags = pd.GetCellData().GetScalars()
 counts = collections.Counter(int(tags.GetValue(i)) for i in range(pd.GetNumberOfCells()))
 print(pd.GetNumberOfPoints(), *sorted(counts.items()))
 "#;
+    let mut expected = format!("{} (0, {})", m.n_vertices(), patches.wall_faces);
+    for (k, p) in patches.patches.iter().enumerate() {
+        expected.push_str(&format!(" ({}, {})", k + 1, p.faces.len()));
+    }
+    assert_eq!(
+        python(script, &dir.path().join("vessel_solids.stl")),
+        expected
+    );
+}
+
+/// Runs a Python script on `file` and returns its trimmed output; fails on a Python error.
+fn python(script: &str, file: &std::path::Path) -> String {
     let out = std::process::Command::new("python3")
         .args(["-c", script])
-        .arg(dir.path().join("vessel_solids.stl"))
+        .arg(file)
         .output()
         .unwrap();
     assert!(
@@ -781,9 +783,5 @@ print(pd.GetNumberOfPoints(), *sorted(counts.items()))
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let mut expected = format!("{} (0, {})", m.n_vertices(), patches.wall_faces);
-    for (k, p) in patches.patches.iter().enumerate() {
-        expected.push_str(&format!(" ({}, {})", k + 1, p.faces.len()));
-    }
-    assert_eq!(String::from_utf8_lossy(&out.stdout).trim(), expected);
+    String::from_utf8_lossy(&out.stdout).trim().to_string()
 }

@@ -14,8 +14,9 @@ fn angle_deg(a: [f64; 3], b: [f64; 3]) -> f64 {
     d.acos().to_degrees()
 }
 
-fn estimate(name: &str, rx: f64, ry: f64) -> (StackAxis, [f64; 3]) {
-    let case = named_case(
+/// A phantom case rotated about x, then y (degrees).
+fn rotated(name: &str, rx: f64, ry: f64) -> destair::phantom::PhantomCase {
+    named_case(
         name,
         &PhantomOptions {
             rotate_x_deg: rx,
@@ -23,7 +24,11 @@ fn estimate(name: &str, rx: f64, ry: f64) -> (StackAxis, [f64; 3]) {
             ..Default::default()
         },
     )
-    .unwrap();
+    .unwrap()
+}
+
+fn estimate(name: &str, rx: f64, ry: f64) -> (StackAxis, [f64; 3]) {
+    let case = rotated(name, rx, ry);
     let truth = apply(&rotation_matrix([rx, ry, 0.0]), [0.0, 0.0, 1.0]);
     let m = &case.meshes[0].1;
     (
@@ -384,15 +389,7 @@ fn auto_tau_is_the_papers_on_binary_phantoms() {
         "aneurysm",
     ] {
         for (rx, ry) in [(0.0, 0.0), (30.0, 45.0)] {
-            let case = named_case(
-                name,
-                &PhantomOptions {
-                    rotate_x_deg: rx,
-                    rotate_y_deg: ry,
-                    ..Default::default()
-                },
-            )
-            .unwrap();
+            let case = rotated(name, rx, ry);
             for (s, m) in &case.meshes {
                 let ctx = context_weights(m, &Topology::build(m), &ContextParams::default(), &[]);
                 if let Some(st) = &ctx.staircase {
