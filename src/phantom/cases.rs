@@ -114,11 +114,7 @@ fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 pub fn named_case(name: &str, options: &PhantomOptions) -> Result<PhantomCase, PhantomError> {
     if let Some(suffix) = name.strip_prefix("sphere-gauss") {
         if suffix.is_empty() || suffix == "-cut" {
-            return Ok(super::gaussian::gauss_sphere(
-                name,
-                suffix == "-cut",
-                options,
-            ));
+            return Ok(gauss_sphere(name, suffix == "-cut", options));
         }
     }
     let mut rng = fastrand::Rng::with_seed(options.seed);
@@ -259,6 +255,27 @@ fn smooth_sphere(
         name: "sphere".into(),
         label: 1,
         n_voxels: v.count(1),
+        n_vertices: mesh.n_vertices(),
+        n_triangles: mesh.n_triangles(),
+    });
+    case.meshes.push(("sphere".into(), mesh));
+    case
+}
+
+/// `sphere-gauss` and `sphere-gauss-cut` ([`super::gaussian`]) as a case.
+fn gauss_sphere(name: &str, cut: bool, options: &PhantomOptions) -> PhantomCase {
+    let (inside, mut mesh) = super::gaussian::gauss_sphere_surface(options.seed, cut, options.ends);
+    let description = if cut {
+        "sphere of radius 50 mm on a 1 x 1 x 3 mm grid with parts of seven slices deleted (a groove, a notch, a quarter of the top slice), Gaussian-filtered (sigma one voxel) and surfaced at 1/2: smooth staircases (Moench 2012, Table 3)"
+    } else {
+        "sphere of radius 50 mm on a 1 x 1 x 3 mm grid, Gaussian-filtered (sigma one voxel) and surfaced at 1/2: no staircase but the slices' own faint ripple"
+    };
+    let mut case = finish(name, description, inside.clone(), &[], options);
+    rotate(&mut mesh, &inside, options);
+    case.info.structures.push(StructureInfo {
+        name: "sphere".into(),
+        label: 1,
+        n_voxels: inside.count(1),
         n_vertices: mesh.n_vertices(),
         n_triangles: mesh.n_triangles(),
     });
@@ -502,7 +519,7 @@ pub fn big_case(n_triangles: u64, options: &PhantomOptions) -> PhantomCase {
 
 /// Extracts each structure, applies the rotation and records what was made.
 /// Rotates a finished mesh about the volume centre (x first, then y).
-pub(super) fn rotate(mesh: &mut Mesh, volume: &LabelVolume, options: &PhantomOptions) {
+fn rotate(mesh: &mut Mesh, volume: &LabelVolume, options: &PhantomOptions) {
     if options.rotate_x_deg == 0.0 && options.rotate_y_deg == 0.0 {
         return;
     }

@@ -3,9 +3,9 @@
 //! filter, so its staircases are smooth ramps rather than sharp steps (what most exported
 //! surfaces look like, and what a fixed orientation-change threshold of 0.7 misses).
 
-use super::cases::{CaseInfo, PhantomCase, PhantomOptions, StructureInfo};
-use super::marching_cubes::extract_surface_interpolated;
+use super::marching_cubes::{extract_surface_interpolated, BorderEnds};
 use super::volume::LabelVolume;
+use crate::mesh::Mesh;
 use rayon::prelude::*;
 
 /// Parts of the sphere deleted slice-wise before filtering: the voxels of the slices whose
@@ -122,48 +122,22 @@ pub fn gaussian_indicator(volume: &LabelVolume, label: u16, sigma_voxels: [f64; 
     field
 }
 
-/// `sphere-gauss-cut` (`cut`) or `sphere-gauss` (the whole sphere): the sphere's label
-/// volume filtered with a Gaussian of one voxel per axis and surfaced where the filtered
-/// indicator crosses 1/2 (Moench 2012, Table 3).
-pub fn gauss_sphere(name: &str, cut: bool, options: &PhantomOptions) -> PhantomCase {
-    let (_, volume, _) = sphere_volumes(options.seed, if cut { &SPHERE_CUTS } else { &[] });
+/// The surface of `sphere-gauss-cut` (`cut`) or `sphere-gauss` (the whole sphere): the
+/// sphere's label volume filtered with a Gaussian of one voxel per axis and surfaced where the
+/// filtered indicator crosses 1/2 (Moench 2012, Table 3). Returns the volume of voxels inside
+/// (filtered indicator above 1/2) and the mesh.
+pub fn gauss_sphere_surface(seed: u64, cut: bool, ends: BorderEnds) -> (LabelVolume, Mesh) {
+    let (_, volume, _) = sphere_volumes(seed, if cut { &SPHERE_CUTS } else { &[] });
     let smooth = gaussian_indicator(&volume, 1, SPHERE_SIGMA_VOXELS);
-    // Inside where the filtered indicator exceeds 1/2; the surface where it crosses 1/2.
-    let mut inside = volume.clone();
+    let mut inside = volume;
     inside
         .labels
         .par_iter_mut()
         .zip(&smooth)
         .for_each(|(l, &g)| *l = u16::from(g > 0.5));
     let field: Vec<f32> = smooth.iter().map(|&g| 0.5 - g).collect();
-    let mut mesh = extract_surface_interpolated(&inside, 1, options.ends, &field);
-    super::cases::rotate(&mut mesh, &inside, options);
-    PhantomCase {
-        info: CaseInfo {
-            name: name.to_string(),
-            description: if cut {
-                "sphere of radius 50 mm on a 1 x 1 x 3 mm grid with parts of seven slices deleted (a groove, a notch, a quarter of the top slice), Gaussian-filtered (sigma one voxel) and surfaced at 1/2: smooth staircases (Moench 2012, Table 3)"
-            } else {
-                "sphere of radius 50 mm on a 1 x 1 x 3 mm grid, Gaussian-filtered (sigma one voxel) and surfaced at 1/2: no staircase but the slices' own faint ripple"
-            }
-            .into(),
-            seed: options.seed,
-            dims: inside.dims,
-            spacing_mm: inside.spacing,
-            origin_mm: inside.origin,
-            rotate_x_deg: options.rotate_x_deg,
-            rotate_y_deg: options.rotate_y_deg,
-            ends: options.ends,
-            structures: vec![StructureInfo {
-                name: "sphere".into(),
-                label: 1,
-                n_voxels: inside.count(1),
-                n_vertices: mesh.n_vertices(),
-                n_triangles: mesh.n_triangles(),
-            }],
-        },
-        meshes: vec![("sphere".into(), mesh)],
-    }
+    let mesh = extract_surface_interpolated(&inside, 1, ends, &field);
+    (inside, mesh)
 }
 
 #[cfg(test)]

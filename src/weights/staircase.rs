@@ -29,15 +29,6 @@ impl Serialize for Tau {
     }
 }
 
-impl std::fmt::Display for Tau {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Tau::Fixed(t) => write!(f, "{t}"),
-            Tau::Auto => f.write_str("auto"),
-        }
-    }
-}
-
 impl std::str::FromStr for Tau {
     type Err = String;
     /// `auto` or a number in [0, 1].
@@ -320,5 +311,19 @@ mod tests {
         );
         assert!(short.distance_mm[0].is_infinite());
         assert_eq!(short.weights.as_slice()[0], 0.0);
+    }
+
+    #[test]
+    fn auto_tau_is_mean_plus_three_and_a_half_sd_within_its_range() {
+        // Mean 0.2, population sd sqrt(2/300) = 0.08165: 0.2 + 3.5 x 0.08165 = 0.48577.
+        let t = auto_tau(&[0.1, 0.2, 0.3]);
+        assert!((t - 0.485_77).abs() < 1e-4, "{t}");
+        // No spread: the floor 0.2; a wide spread: the paper's 0.7.
+        assert_eq!(auto_tau(&[0.05; 10]), 0.2);
+        assert_eq!(auto_tau(&[0.0, 0.0, 0.0, 1.0]), 0.7);
+        assert_eq!(auto_tau(&[]), 0.7);
+        assert_eq!("auto".parse::<Tau>(), Ok(Tau::Auto));
+        assert_eq!("0.3".parse::<Tau>(), Ok(Tau::Fixed(0.3)));
+        assert!("1.5".parse::<Tau>().is_err() && "often".parse::<Tau>().is_err());
     }
 }
