@@ -399,3 +399,67 @@ fn auto_tau_is_the_papers_on_binary_phantoms() {
         }
     }
 }
+
+/// A cap is a clipped end. A rounded blob (Gaussian-filtered, nothing clipped) has none, raw or
+/// after Laplace, and the aneurysm with open ends (its clipped ends are holes, not caps) has none
+/// either, in eight rotations, with the automatic threshold and with the paper's 0.2 for
+/// smoothed surfaces.
+#[test]
+fn no_caps_on_a_rounded_blob_or_the_open_aneurysm_in_any_rotation() {
+    use destair::phantom::marching_cubes::BorderEnds;
+    use destair::weights::Tau;
+    let rotations = [
+        (0.0, 0.0),
+        (30.0, 0.0),
+        (0.0, 45.0),
+        (20.0, 35.0),
+        (60.0, 10.0),
+        (90.0, 0.0),
+        (45.0, 45.0),
+        (10.0, 80.0),
+    ];
+    let caps = |m: &Mesh, tau: Tau| {
+        let params = ContextParams {
+            staircase_params: StaircaseParams {
+                tau,
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        context_weights(m, &Topology::build(m), &params, &[])
+            .caps
+            .caps
+            .len()
+    };
+    for (rx, ry) in rotations {
+        let blob = rotated("blob-gauss", rx, ry).meshes[0].1.clone();
+        for iterations in [0, 10, 30, 50] {
+            let m = smoothed(
+                &blob,
+                Method::Laplace { lambda: 0.5 },
+                iterations,
+                &VertexWeights::uniform(blob.n_vertices()),
+            );
+            for tau in [Tau::Auto, Tau::Fixed(0.2)] {
+                assert_eq!(caps(&m, tau), 0, "blob {rx} {ry}, {iterations} it, {tau:?}");
+            }
+        }
+        let open = named_case(
+            "aneurysm",
+            &PhantomOptions {
+                rotate_x_deg: rx,
+                rotate_y_deg: ry,
+                ends: BorderEnds::Open,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        for tau in [Tau::Auto, Tau::Fixed(0.2)] {
+            assert_eq!(
+                caps(&open.meshes[0].1, tau),
+                0,
+                "open aneurysm {rx} {ry}, {tau:?}"
+            );
+        }
+    }
+}

@@ -31,7 +31,7 @@ pub const CASE_NAMES: [&str; 11] = [
 /// Smooth-surface variants (marching cubes on a smooth field rather than a binary mask): the
 /// paper's sphere, where the only staircase is the removed part of the top slice, and the
 /// Gaussian-filtered sphere with smooth staircases ([`super::gaussian`]).
-pub const SMOOTH_CASE_NAMES: [&str; 8] = [
+pub const SMOOTH_CASE_NAMES: [&str; 9] = [
     "sphere-smooth",
     "sphere-smooth-1-16",
     "sphere-smooth-1-8",
@@ -40,6 +40,7 @@ pub const SMOOTH_CASE_NAMES: [&str; 8] = [
     "sphere-smooth-top",
     "sphere-gauss",
     "sphere-gauss-cut",
+    "blob-gauss",
 ];
 
 /// Options shared by all phantoms.
@@ -112,6 +113,14 @@ fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 
 /// Generates a named case (see [`CASE_NAMES`]).
 pub fn named_case(name: &str, options: &PhantomOptions) -> Result<PhantomCase, PhantomError> {
+    if name == "blob-gauss" {
+        let (inside, mesh) = super::gaussian::gauss_surface(
+            super::gaussian::blob_volume(options.seed),
+            options.ends,
+        );
+        let description = "three overlapping spheres (radii 18, 13, 11 mm) on a 1 x 1 x 3 mm grid, Gaussian-filtered (sigma one voxel) and surfaced at 1/2: rounded, nothing clipped, no caps";
+        return Ok(with_mesh(name, description, inside, mesh, options));
+    }
     if let Some(suffix) = name.strip_prefix("sphere-gauss") {
         if suffix.is_empty() || suffix == "-cut" {
             return Ok(gauss_sphere(name, suffix == "-cut", options));
@@ -264,22 +273,36 @@ fn smooth_sphere(
 
 /// `sphere-gauss` and `sphere-gauss-cut` ([`super::gaussian`]) as a case.
 fn gauss_sphere(name: &str, cut: bool, options: &PhantomOptions) -> PhantomCase {
-    let (inside, mut mesh) = super::gaussian::gauss_sphere_surface(options.seed, cut, options.ends);
+    let (inside, mesh) = super::gaussian::gauss_sphere_surface(options.seed, cut, options.ends);
     let description = if cut {
         "sphere of radius 50 mm on a 1 x 1 x 3 mm grid with parts of seven slices deleted (a groove, a notch, a quarter of the top slice), Gaussian-filtered (sigma one voxel) and surfaced at 1/2: smooth staircases (Moench 2012, Table 3)"
     } else {
         "sphere of radius 50 mm on a 1 x 1 x 3 mm grid, Gaussian-filtered (sigma one voxel) and surfaced at 1/2: no staircase but the slices' own faint ripple"
     };
-    let mut case = finish(name, description, inside.clone(), &[], options);
+    with_mesh(name, description, inside, mesh, options)
+}
+
+/// A case of one structure (label 1, named after the case's first word) whose mesh was made
+/// outside [`finish`]; rotated as the options say.
+fn with_mesh(
+    name: &str,
+    description: &str,
+    inside: LabelVolume,
+    mut mesh: Mesh,
+    options: &PhantomOptions,
+) -> PhantomCase {
+    let structure = name.split('-').next().unwrap_or(name).to_string();
     rotate(&mut mesh, &inside, options);
+    let n_voxels = inside.count(1);
+    let mut case = finish(name, description, inside, &[], options);
     case.info.structures.push(StructureInfo {
-        name: "sphere".into(),
+        name: structure.clone(),
         label: 1,
-        n_voxels: inside.count(1),
+        n_voxels,
         n_vertices: mesh.n_vertices(),
         n_triangles: mesh.n_triangles(),
     });
-    case.meshes.push(("sphere".into(), mesh));
+    case.meshes.push((structure, mesh));
     case
 }
 

@@ -83,6 +83,34 @@ fn sphere_volumes(seed: u64, cuts: &[SliceCut]) -> (LabelVolume, LabelVolume, [f
     (whole, cut, centre)
 }
 
+/// `blob-gauss`: three overlapping spheres (radii 18, 13 and 11 mm) on a 1 x 1 x 3 mm grid,
+/// Gaussian-filtered like the sphere: a rounded shape with no clipped surface, so no caps.
+pub fn blob_volume(seed: u64) -> LabelVolume {
+    let mut rng = fastrand::Rng::with_seed(seed);
+    let spacing = [1.0, 1.0, 3.0];
+    let mut v = LabelVolume::new([80, 80, 30], spacing, [0.0; 3]);
+    let jitter: [f64; 3] = std::array::from_fn(|k| (rng.f64() - 0.5) * spacing[k]);
+    let at = |c: [f64; 3]| -> [f64; 3] { std::array::from_fn(|k| c[k] + jitter[k]) };
+    v.paint(
+        &super::volume::Shape::Union(vec![
+            super::volume::Shape::Sphere {
+                center: at([40.0, 40.0, 45.0]),
+                radius: 18.0,
+            },
+            super::volume::Shape::Sphere {
+                center: at([53.0, 47.0, 56.0]),
+                radius: 13.0,
+            },
+            super::volume::Shape::Sphere {
+                center: at([28.0, 50.0, 34.0]),
+                radius: 11.0,
+            },
+        ]),
+        1,
+    );
+    v
+}
+
 /// The indicator of `label` filtered with a Gaussian of `sigma_voxels` per axis (separable,
 /// truncated at 3 sigma, normalised; background beyond the border), one value per voxel in
 /// [0, 1].
@@ -128,6 +156,12 @@ pub fn gaussian_indicator(volume: &LabelVolume, label: u16, sigma_voxels: [f64; 
 /// (filtered indicator above 1/2) and the mesh.
 pub fn gauss_sphere_surface(seed: u64, cut: bool, ends: BorderEnds) -> (LabelVolume, Mesh) {
     let (_, volume, _) = sphere_volumes(seed, if cut { &SPHERE_CUTS } else { &[] });
+    gauss_surface(volume, ends)
+}
+
+/// The surface where label 1 of `volume`, Gaussian-filtered with one voxel per axis, crosses
+/// 1/2, and the volume of voxels inside it.
+pub fn gauss_surface(volume: LabelVolume, ends: BorderEnds) -> (LabelVolume, Mesh) {
     let smooth = gaussian_indicator(&volume, 1, SPHERE_SIGMA_VOXELS);
     let mut inside = volume;
     inside
