@@ -55,7 +55,7 @@ pub const AUTO_TAU_SIGMAS: f64 = 3.5;
 /// The threshold for `tau = "auto"`: the mean orientation change of the mesh plus 3.5 standard
 /// deviations, within [0.2, 0.7]. On a binary marching-cubes surface staircases make up a large
 /// share of the vertices, the spread is wide and the rule gives the paper's 0.7 (every binary
-/// phantom of `destair phantom`); on a surface from a smoothed image (or smoothed at export) the
+/// phantom of `destair phantom` measured); on a surface from a smoothed image (or smoothed at export) the
 /// bulk is the surface's own gentle variation and the threshold lands just above it, where
 /// softened staircases stand out (Gaussian-filtered cut sphere: 0.42, the uncut one 0.37 with
 /// no vertex above it). Summed in order, so the same for any thread count.
