@@ -89,6 +89,87 @@ fn stack_axis_of_cut_spheres_and_none_for_a_round_sphere() {
     );
 }
 
+/// Paper 004 Table 5 on smooth surfaces: part of the top slice removed from a sphere surfaced
+/// from its distance field (1 x 1 x 3 mm). The paper gets 1.2-1.6 degrees for 1/2 to 1/8; the
+/// smoothed terrace is curved like a dome, so its own normals lean a degree or more off the axis.
+#[test]
+fn stack_axis_of_smooth_cut_spheres_within_a_degree_and_none_without_a_cut() {
+    let poses = [(0.0, 0.0), (30.0, 0.0), (20.0, 35.0), (60.0, 10.0)];
+    for name in [
+        "sphere-smooth-1-2",
+        "sphere-smooth-1-4",
+        "sphere-smooth-1-8",
+    ] {
+        for (rx, ry) in poses {
+            let (est, truth) = estimate(name, rx, ry);
+            let axis = est
+                .axis()
+                .unwrap_or_else(|| panic!("{name} {rx} {ry}: {est:?}"));
+            let error = angle_deg(axis, truth);
+            assert!(error <= 1.0, "{name} {rx} {ry}: {error} degrees, {est:?}");
+        }
+    }
+    // The same sphere without a cut has no flat area: no axis (it used to give a 72 degree one
+    // from the slivers of the anisotropic grid).
+    for (rx, ry) in poses {
+        let (est, _) = estimate("sphere-smooth", rx, ry);
+        assert!(
+            matches!(est, StackAxis::TooWeak { .. }),
+            "{rx} {ry}: {est:?}"
+        );
+    }
+}
+
+/// Whatever the surface (binary, Gaussian-filtered, distance field) and however smoothed, the
+/// stack axis is the right one or none: a wrong axis would steer staircase smoothing to the
+/// wrong places. Before candidates had to be flat at the mm scale, the neck's tumour gave a
+/// 90 degree axis after 10 Laplace iterations and the Gaussian cut sphere a 70 degree one after 50.
+#[test]
+fn stack_axis_is_right_or_too_weak_raw_and_after_laplace() {
+    let (rx, ry) = (20.0, 35.0);
+    let truth = apply(&rotation_matrix([rx, ry, 0.0]), [0.0, 0.0, 1.0]);
+    let mut found_smoothed = 0;
+    for name in [
+        "neck",
+        "cap-cylinder",
+        "sphere-aniso-1-8",
+        "sphere-smooth-1-4",
+        "sphere-gauss-cut",
+        "blob-gauss",
+    ] {
+        let case = rotated(name, rx, ry);
+        for (structure, raw) in &case.meshes {
+            for iterations in [0, 10, 50] {
+                let m = if iterations == 0 {
+                    raw.clone()
+                } else {
+                    let w = VertexWeights::uniform(raw.n_vertices());
+                    smoothed(raw, Method::Laplace { lambda: 0.5 }, iterations, &w)
+                };
+                let est = stack_axis(&m, &Topology::build(&m), &StackAxisParams::default());
+                eprintln!("{name}/{structure} after {iterations}: {est:?}");
+                match est.axis() {
+                    Some(axis) => {
+                        let error = angle_deg(axis, truth);
+                        let limit = if iterations == 0 { 1.0 } else { 2.0 };
+                        assert!(
+                            error <= limit,
+                            "{name}/{structure} after {iterations} iterations: {error} degrees"
+                        );
+                        found_smoothed += usize::from(iterations > 0);
+                    }
+                    None => assert!(iterations > 0, "{name}/{structure} raw: {est:?}"),
+                }
+            }
+        }
+    }
+    // Smoothing weakens the evidence but does not erase all of it.
+    assert!(
+        found_smoothed >= 5,
+        "found after smoothing: {found_smoothed}"
+    );
+}
+
 use destair::analysis::{detect_caps, CapParams};
 use destair::metrics::{average_normal_curvature, enclosed_volume, minimum_distance};
 use destair::smooth::{boundary_vertices, smooth, Method};
@@ -117,57 +198,89 @@ fn centroid(m: &Mesh, vertices: &[u32]) -> [f32; 3] {
     })
 }
 
+/// Paper 004 §4.3: the cylinder's two discs and the tilted cuboid's far end wall (the one face of
+/// the cuboid whose rims are all convex) are the caps, raw and after 10-50 Laplace iterations
+/// (lambda 0.5), in rotated poses; the cuboid's staircases are not. Raw, the wall is terraced
+/// (1 x 1 x 2 mm grid, tilted 14 degrees) and is found on the smoothed copy.
 #[test]
 fn caps_of_the_cap_cylinder_raw_and_after_laplace() {
-    let case = named_case("cap-cylinder", &PhantomOptions::default()).unwrap();
-    let raw = &case.meshes[0].1;
-    let found = detect_caps(raw, &Topology::build(raw), None, &CapParams::default());
-    // Exactly the two cylinder ends; none of the cuboid's staircases.
-    assert_eq!(
-        found.caps.len(),
-        2,
-        "{:?}",
-        found.caps.iter().map(|c| c.normal).collect::<Vec<_>>()
-    );
-    let mut nz: Vec<f32> = found.caps.iter().map(|c| c.normal[2]).collect();
-    nz.sort_by(f32::total_cmp);
-    assert!(nz[0] < -0.999 && nz[1] > 0.999);
-    assert!(
-        found.n_terraces >= 3,
-        "terraces recognised as such: {}",
-        found.n_terraces
-    );
-    for c in &found.caps {
-        assert!(c.area_mm2 > 1500.0, "a whole cylinder end: {}", c.area_mm2);
-    }
-
-    let soft = smoothed(
-        raw,
-        Method::Laplace { lambda: 0.5 },
-        50,
-        &VertexWeights::uniform(raw.n_vertices()),
-    );
-    let found = detect_caps(&soft, &Topology::build(&soft), None, &CapParams::default());
-    let ends: Vec<_> = found
-        .caps
-        .iter()
-        .filter(|c| c.normal[2].abs() > 0.99)
-        .collect();
-    assert_eq!(ends.len(), 2, "both rounded cylinder ends are still caps");
-    for c in &ends {
-        let x = centroid(&soft, &c.vertices)[0];
-        assert!(
-            (x - 38.0).abs() < 3.0,
-            "on the cylinder axis, not on the cuboid: {x}"
+    for (rx, ry) in [(0.0, 0.0), (30.0, 0.0), (20.0, 35.0), (60.0, 10.0)] {
+        let case = rotated("cap-cylinder", rx, ry);
+        let pose = rotation_matrix([rx, ry, 0.0]);
+        let axis = apply(&pose, [0.0, 0.0, 1.0]);
+        // The cuboid is turned 8 degrees about x, then 14 about y; its far end faces +x.
+        let wall = apply(
+            &pose,
+            apply(&rotation_matrix([8.0, 14.0, 0.0]), [1.0, 0.0, 0.0]),
         );
-    }
-    // The cuboid's terraces (normals near the stack axis, off the cylinder) are not caps.
-    for c in &found.caps {
-        let x = centroid(&soft, &c.vertices)[0];
-        assert!(
-            !(c.normal[2].abs() > 0.9 && x > 60.0),
-            "cuboid terrace taken for a cap"
+        // A point on the cylinder's axis, turned about the volume centre as the phantom is.
+        let i = &case.info;
+        let centre: [f64; 3] = std::array::from_fn(|k| {
+            i.origin_mm[k] + 0.5 * (i.dims[k] as f64 - 1.0) * i.spacing_mm[k]
+        });
+        let r = apply(
+            &pose,
+            [38.0 - centre[0], 42.0 - centre[1], 52.0 - centre[2]],
         );
+        let cylinder_axis_point: [f64; 3] = std::array::from_fn(|k| centre[k] + r[k]);
+        let raw = &case.meshes[0].1;
+        for iterations in [0, 10, 20, 30, 40, 50] {
+            let m = smoothed(
+                raw,
+                Method::Laplace { lambda: 0.5 },
+                iterations,
+                &VertexWeights::uniform(raw.n_vertices()),
+            );
+            let found = detect_caps(&m, &Topology::build(&m), None, &CapParams::default());
+            let what = format!(
+                "[{rx}, {ry}] after {iterations}: {:?}",
+                found
+                    .caps
+                    .iter()
+                    .map(|c| (c.normal, c.area_mm2))
+                    .collect::<Vec<_>>()
+            );
+            assert_eq!(found.caps.len(), 3, "{what}");
+            let along = |c: &destair::analysis::Cap, d: [f64; 3]| {
+                (0..3).map(|k| c.normal[k] as f64 * d[k]).sum::<f64>()
+            };
+            let discs: Vec<_> = found
+                .caps
+                .iter()
+                .filter(|c| along(c, axis).abs() > 0.999)
+                .collect();
+            assert_eq!(discs.len(), 2, "both cylinder ends: {what}");
+            assert!(
+                along(discs[0], axis) * along(discs[1], axis) < 0.0,
+                "{what}"
+            );
+            for c in &discs {
+                // On the cylinder's axis, not on the cuboid.
+                let p = centroid(&m, &c.vertices);
+                let off: Vec<f64> = (0..3)
+                    .map(|k| p[k] as f64 - cylinder_axis_point[k])
+                    .collect();
+                let h: f64 = (0..3).map(|k| off[k] * axis[k]).sum();
+                let radial = ((0..3).map(|k| (off[k] - h * axis[k]).powi(2)).sum::<f64>()).sqrt();
+                assert!(radial < 3.0, "disc centre {radial} mm off the axis: {what}");
+                assert!(c.area_mm2 > 1400.0, "a whole cylinder end: {what}");
+            }
+            let ends: Vec<_> = found
+                .caps
+                .iter()
+                .filter(|c| along(c, wall) > (3.0f64).to_radians().cos())
+                .collect();
+            assert_eq!(
+                ends.len(),
+                1,
+                "the cuboid's far end, within 3 degrees: {what}"
+            );
+            assert!(ends[0].area_mm2 > 700.0, "{what}");
+            if iterations == 0 {
+                assert_eq!(found.n_from_smoothed_copy, 1, "{what}");
+                assert!(found.n_terraces >= 3, "terraces: {}", found.n_terraces);
+            }
+        }
     }
 }
 

@@ -12,11 +12,15 @@
 //! border (up to half the region's width) it must turn sharply, as the wall at a cut
 //! does (75 degrees or more); and, when staircase reach is known, most of the border must lie
 //! within reach of a staircase, since a cap only matters where staircase smoothing would
-//! otherwise reach it (§4.3).
+//! otherwise reach it (§4.3). A clipped end that cuts the grid obliquely is terraced on a
+//! binary surface, with no flat face to grow from; it is found by looking again on a copy
+//! smoothed by 10 Laplace iterations, where it is flat (the faces, not the positions, are
+//! what the copy contributes).
 
 use crate::mesh::geometry::{face_normals, triangle_area_vector};
 use crate::mesh::{Mesh, Topology};
-use crate::metrics::vertex_normal_curvature;
+use crate::metrics::vertex_normal_turn;
+use rayon::prelude::*;
 use serde::Serialize;
 use std::collections::VecDeque;
 
@@ -47,6 +51,15 @@ pub struct CapParams {
     /// Slope (offset along the normal over edge length) below which a border vertex shows no
     /// direction.
     pub min_slope: f32,
+    /// Caps are also looked for on a copy smoothed by this many uniform Laplace iterations
+    /// (lambda 0.5, rims fixed), and one found there that overlaps none found on the mesh
+    /// itself is added: a clipped end that cuts the grid obliquely is terraced, with no flat
+    /// face to grow from, until smoothed. 0 turns the second look off.
+    pub smoothed_copy_iterations: usize,
+    /// On the smoothed copy a flat face must also be flat at the mm scale: the normal turns by
+    /// at most this much per mm (degrees per mm), so rounded parts, flat at a fine sampling,
+    /// are not examined.
+    pub smoothed_copy_flat_deg_per_mm: f32,
 }
 
 impl Default for CapParams {
@@ -62,6 +75,8 @@ impl Default for CapParams {
             min_staircase_border: 0.0,
             max_minority: 0.1,
             min_slope: 0.05,
+            smoothed_copy_iterations: 10,
+            smoothed_copy_flat_deg_per_mm: 0.5,
         }
     }
 }
@@ -84,6 +99,8 @@ pub struct CapDetection {
     pub n_regions: usize,
     /// Regions rejected because the surface leaves them both ways (staircase terraces).
     pub n_terraces: usize,
+    /// Caps found only on the smoothed copy (terraced oblique ends), included in `caps`.
+    pub n_from_smoothed_copy: usize,
 }
 
 impl CapDetection {
@@ -99,11 +116,58 @@ impl CapDetection {
     }
 }
 
+fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
 fn angle_deg(a: [f32; 3], b: [f32; 3]) -> f32 {
     (a[0] * b[0] + a[1] * b[1] + a[2] * b[2])
         .clamp(-1.0, 1.0)
         .acos()
         .to_degrees()
+}
+
+/// Edge neighbours of every face, found once for both looks (the smoothed copy has the same
+/// faces): up to three per face, padded with `NONE`; a face on a non-manifold edge is marked and
+/// looked up again when visited.
+struct FaceNeighbours {
+    three: Vec<[u32; 3]>,
+    more: Vec<bool>,
+}
+
+const NONE: u32 = u32::MAX;
+
+impl FaceNeighbours {
+    fn build(mesh: &Mesh, topology: &Topology) -> Self {
+        (0..mesh.n_triangles() as u32)
+            .into_par_iter()
+            .map_init(Vec::new, |scratch, f| {
+                edge_neighbours(mesh, topology, f, scratch);
+                let mut three = [NONE; 3];
+                if scratch.len() > 3 {
+                    return (three, true);
+                }
+                three[..scratch.len()].copy_from_slice(scratch);
+                (three, false)
+            })
+            .unzip()
+            .into()
+    }
+
+    fn of(&self, mesh: &Mesh, topology: &Topology, f: u32, out: &mut Vec<u32>) {
+        if self.more[f as usize] {
+            edge_neighbours(mesh, topology, f, out);
+        } else {
+            out.clear();
+            out.extend(self.three[f as usize].iter().filter(|&&g| g != NONE));
+        }
+    }
+}
+
+impl From<(Vec<[u32; 3]>, Vec<bool>)> for FaceNeighbours {
+    fn from((three, more): (Vec<[u32; 3]>, Vec<bool>)) -> Self {
+        Self { three, more }
+    }
 }
 
 /// Faces sharing an edge with face `f` (through the vertex->face CSR; no extra table).
@@ -138,22 +202,113 @@ pub fn detect_caps(
     staircase_reach: Option<&[bool]>,
     params: &CapParams,
 ) -> CapDetection {
+    let adjacency = FaceNeighbours::build(mesh, topology);
+    let mut detection = caps_of(
+        mesh,
+        topology,
+        &adjacency,
+        staircase_reach,
+        params,
+        f32::INFINITY,
+    );
+    if params.smoothed_copy_iterations == 0 {
+        return detection;
+    }
+    let mut copy = mesh.clone();
+    let smoothed = low_pass(mesh, topology, params.smoothed_copy_iterations);
+    copy.positions_mut().copy_from_slice(&smoothed);
+    let mut taken = vec![false; mesh.n_triangles()];
+    for c in &detection.caps {
+        for &f in &c.faces {
+            taken[f as usize] = true;
+        }
+    }
+    let flat_per_mm = params.smoothed_copy_flat_deg_per_mm;
+    let found = caps_of(
+        &copy,
+        topology,
+        &adjacency,
+        staircase_reach,
+        params,
+        flat_per_mm,
+    );
+    for mut cap in found.caps {
+        if cap.faces.iter().any(|&f| taken[f as usize]) {
+            continue;
+        }
+        for &f in &cap.faces {
+            taken[f as usize] = true;
+        }
+        // Normal and area of the mesh itself (the terraced plane's mean normal).
+        cap.normal = region_normal(mesh, &cap.faces);
+        cap.area_mm2 = region_area(mesh, &cap.faces);
+        detection.caps.push(cap);
+        detection.n_from_smoothed_copy += 1;
+    }
+    detection
+}
+
+/// Positions after `iterations` uniform umbrella steps (lambda 0.5) with rim and non-manifold
+/// vertices fixed: a low-pass copy on which a terraced plane is flat.
+fn low_pass(mesh: &Mesh, topology: &Topology, iterations: usize) -> Vec<[f32; 3]> {
+    let mut fixed = vec![false; mesh.n_vertices()];
+    for (e, &n) in topology.edges().iter().zip(topology.edge_n_faces()) {
+        if n != 2 {
+            fixed[e[0] as usize] = true;
+            fixed[e[1] as usize] = true;
+        }
+    }
+    let mut a = mesh.positions().to_vec();
+    let mut b = a.clone();
+    for _ in 0..iterations {
+        b.par_iter_mut().enumerate().for_each(|(v, out)| {
+            let ring = topology.neighbors(v);
+            let p = a[v];
+            if fixed[v] || ring.is_empty() {
+                *out = p;
+                return;
+            }
+            let mut sum = [0.0f32; 3];
+            for &u in ring {
+                for k in 0..3 {
+                    sum[k] += a[u as usize][k];
+                }
+            }
+            let inv = 1.0 / ring.len() as f32;
+            *out = std::array::from_fn(|k| p[k] + 0.5 * (sum[k] * inv - p[k]));
+        });
+        std::mem::swap(&mut a, &mut b);
+    }
+    a
+}
+
+/// Caps of the mesh as it is (Algorithm 3.1 with the checks above); flat faces turn by at most
+/// `flat_deg_per_mm` too.
+fn caps_of(
+    mesh: &Mesh,
+    topology: &Topology,
+    adjacency: &FaceNeighbours,
+    staircase_reach: Option<&[bool]>,
+    params: &CapParams,
+    flat_deg_per_mm: f32,
+) -> CapDetection {
     let n_faces = mesh.n_triangles();
     let tris = mesh.triangles();
     let p = mesh.positions();
-    let curvature = vertex_normal_curvature(mesh, topology);
+    let turn = vertex_normal_turn(mesh, topology);
     let normals = face_normals(mesh);
     let degenerate = |f: usize| normals[f] == [0.0; 3];
     let flat: Vec<bool> = (0..n_faces)
         .map(|f| {
             !degenerate(f)
-                && tris[f]
-                    .iter()
-                    .all(|&v| curvature[v as usize].is_some_and(|c| c <= params.flat_deg))
+                && tris[f].iter().all(|&v| {
+                    turn[v as usize].is_some_and(|t| {
+                        t.deg <= params.flat_deg && t.deg_per_mm <= flat_deg_per_mm
+                    })
+                })
         })
         .collect();
     // Connected flat regions.
-    const NONE: u32 = u32::MAX;
     let mut region = vec![NONE; n_faces];
     let mut regions: Vec<Vec<u32>> = Vec::new();
     let mut scratch = Vec::new();
@@ -166,7 +321,7 @@ pub fn detect_caps(
         region[start] = id;
         let mut i = 0;
         while i < members.len() {
-            edge_neighbours(mesh, topology, members[i], &mut scratch);
+            adjacency.of(mesh, topology, members[i], &mut scratch);
             for &g in &scratch {
                 if flat[g as usize] && region[g as usize] == NONE {
                     region[g as usize] = id;
@@ -196,21 +351,25 @@ pub fn detect_caps(
         caps: Vec::new(),
         n_regions: kept.len(),
         n_terraces: 0,
+        n_from_smoothed_copy: 0,
     };
+    // Growth limits as cosines (no acos per visited face).
+    let cos_step = params.grow_step_deg.to_radians().cos();
+    let cos_total = params.grow_total_deg.to_radians().cos();
     for (id, faces) in kept.iter_mut().enumerate() {
         let id = id as u32;
         let mean = region_normal(mesh, faces);
         // Grow over neighbours of nearly the same orientation.
         let mut queue: VecDeque<u32> = faces.iter().copied().collect();
         while let Some(f) = queue.pop_front() {
-            edge_neighbours(mesh, topology, f, &mut scratch);
+            adjacency.of(mesh, topology, f, &mut scratch);
             for &g in &scratch {
                 let gi = g as usize;
                 if region[gi] != NONE || degenerate(gi) {
                     continue;
                 }
-                if angle_deg(normals[gi], normals[f as usize]) <= params.grow_step_deg
-                    && angle_deg(normals[gi], mean) <= params.grow_total_deg
+                if dot(normals[gi], normals[f as usize]) >= cos_step
+                    && dot(normals[gi], mean) >= cos_total
                 {
                     region[gi] = id;
                     faces.push(g);
@@ -292,13 +451,7 @@ pub fn detect_caps(
                 continue;
             }
         }
-        let area_mm2 = faces
-            .iter()
-            .map(|&f| {
-                let a = triangle_area_vector(mesh, tris[f as usize]);
-                0.5 * (a.iter().map(|x| (*x as f64).powi(2)).sum::<f64>()).sqrt()
-            })
-            .sum();
+        let area_mm2 = region_area(mesh, faces);
         let mut sorted_faces = faces.clone();
         sorted_faces.sort_unstable();
         detection.caps.push(Cap {
@@ -412,6 +565,16 @@ fn region_width(p: &[[f32; 3]], vertices: &[u32], normal: [f32; 3]) -> f32 {
 }
 
 /// Area-weighted unit normal of a set of faces.
+fn region_area(mesh: &Mesh, faces: &[u32]) -> f64 {
+    faces
+        .iter()
+        .map(|&f| {
+            let a = triangle_area_vector(mesh, mesh.triangles()[f as usize]);
+            0.5 * (a.iter().map(|x| (*x as f64).powi(2)).sum::<f64>()).sqrt()
+        })
+        .sum()
+}
+
 fn region_normal(mesh: &Mesh, faces: &[u32]) -> [f32; 3] {
     let mut sum = [0.0f64; 3];
     for &f in faces {

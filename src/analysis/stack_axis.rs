@@ -7,10 +7,22 @@
 //! bins above (mean + max) / 2 are grown into clusters; each cluster's mean is a candidate; the
 //! candidate with most area within 4.5 degrees of it wins and is then refined from those faces.
 //! Evidence below a minimum share gives a "too weak" result instead of a random axis.
+//!
+//! Two departures from the paper keep smooth surfaces from producing a wrong axis. Candidates
+//! come only from faces that are flat at the mm scale (the normal turns by at most 0.5 degrees
+//! per mm, a radius of curvature of 115 mm or more): terraces and caps qualify, the round parts
+//! of a structure and the zig-zag slivers marching cubes leaves on an anisotropic grid do not,
+//! however finely they are sampled. (With the paper's 5 degree test alone, a sphere surfaced
+//! from a smooth field on a 1 x 1 x 3 mm grid gave a 72 degree axis from sliver clusters, and a
+//! staircased tumour after 10 Laplace iterations a 90 degree one.) Support and refinement then
+//! count faces flat at the mesh's own sampling (normal curvature <= 0.5 degrees): where the
+//! surface faces the stack axis marching cubes samples it at the fine in-plane spacing, so such
+//! faces surround the axis on all sides, while a smoothed terrace, curved like a dome, lies on
+//! one side and alone would pull the axis off by a degree or more.
 
 use crate::mesh::geometry::triangle_area_vector;
 use crate::mesh::{Mesh, Topology};
-use crate::metrics::vertex_normal_curvature;
+use crate::metrics::vertex_normal_turn;
 use crate::parallel::deterministic_sum;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -27,10 +39,14 @@ pub struct StackAxisParams {
     pub min_support_share: f64,
     /// Least number of supporting faces.
     pub min_support_faces: usize,
-    /// Only faces whose three vertices have a normal curvature up to this (degrees) count as
-    /// evidence: terraces are flat, while the zig-zag slivers marching cubes leaves on an
-    /// anisotropic grid are not and would otherwise form spurious clusters.
+    /// Candidate faces: all three vertices with a normal curvature up to this (degrees; the
+    /// paper's flatness test)...
     pub flat_deg: f32,
+    /// ...and a normal turning by at most this much per mm (degrees per mm).
+    pub flat_deg_per_mm: f32,
+    /// Support and refinement count faces whose three vertices have a normal curvature up to
+    /// this (degrees).
+    pub support_flat_deg: f32,
 }
 
 impl Default for StackAxisParams {
@@ -38,11 +54,14 @@ impl Default for StackAxisParams {
         Self {
             radius: 0.1,
             support_deg: 4.5,
-            // A uniform Gauss map puts 0.3 % of the area within 4.5 degrees of any axis; ask
-            // for twice that before calling a direction the stack axis.
-            min_support_share: 0.006,
+            // A uniform Gauss map puts 0.31 % of the area within 4.5 degrees of any axis, even
+            // if every face passed the flatness test; ask for more than that (a direction
+            // needs candidate faces, flat at the mm scale, before it is considered at all).
+            min_support_share: 0.004,
             min_support_faces: 10,
             flat_deg: 5.0,
+            flat_deg_per_mm: 0.5,
+            support_flat_deg: 0.5,
         }
     }
 }
@@ -95,22 +114,29 @@ fn canonical(a: [f64; 3]) -> [f64; 3] {
 
 /// Estimates the stack axis of a mesh from its face normals.
 pub fn stack_axis(mesh: &Mesh, topology: &Topology, params: &StackAxisParams) -> StackAxis {
-    let curvature = vertex_normal_curvature(mesh, topology);
-    let flat = |v: u32| curvature[v as usize].is_some_and(|c| c <= params.flat_deg);
+    let turn = vertex_normal_turn(mesh, topology);
+    let candidate = |v: u32| {
+        turn[v as usize]
+            .is_some_and(|t| t.deg <= params.flat_deg && t.deg_per_mm <= params.flat_deg_per_mm)
+    };
+    let supporting = |v: u32| turn[v as usize].is_some_and(|t| t.deg <= params.support_flat_deg);
     // Evidence is the area of flat faces, not a face count: slivers (which marching cubes makes
     // wherever the surface passes close to a grid point) then cannot outvote real terraces.
-    let (normals, areas): (Vec<[f64; 3]>, Vec<f64>) = mesh
-        .triangles()
-        .par_iter()
-        .filter_map(|&t| {
-            if !t.iter().all(|&v| flat(v)) {
-                return None;
-            }
-            let v = triangle_area_vector(mesh, t).map(f64::from);
-            let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-            (len > 0.0 && len.is_finite()).then(|| (v.map(|x| x / len), 0.5 * len))
-        })
-        .unzip();
+    let unit_normals = |flat: &(dyn Fn(u32) -> bool + Sync)| -> (Vec<[f64; 3]>, Vec<f64>) {
+        mesh.triangles()
+            .par_iter()
+            .filter_map(|&t| {
+                if !t.iter().all(|&v| flat(v)) {
+                    return None;
+                }
+                let v = triangle_area_vector(mesh, t).map(f64::from);
+                let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+                (len > 0.0 && len.is_finite()).then(|| (v.map(|x| x / len), 0.5 * len))
+            })
+            .unzip()
+    };
+    let (normals, areas) = unit_normals(&candidate);
+    let (support_normals, support_areas) = unit_normals(&supporting);
     let all_areas: Vec<f64> = mesh
         .triangles()
         .par_iter()
@@ -237,9 +263,9 @@ pub fn stack_axis(mesh: &Mesh, topology: &Topology, params: &StackAxisParams) ->
     let cos_support = params.support_deg.to_radians().cos();
     // Supporting area for an axis, as a share of the total.
     let support = |a: [f64; 3]| {
-        deterministic_sum(normals.len(), |i| {
-            if dot(normals[i], a).abs() >= cos_support {
-                areas[i]
+        deterministic_sum(support_normals.len(), |i| {
+            if dot(support_normals[i], a).abs() >= cos_support {
+                support_areas[i]
             } else {
                 0.0
             }
@@ -256,10 +282,10 @@ pub fn stack_axis(mesh: &Mesh, topology: &Topology, params: &StackAxisParams) ->
     let mut axis = best;
     for _ in 0..3 {
         let sum: [f64; 3] = std::array::from_fn(|k| {
-            deterministic_sum(normals.len(), |i| {
-                let d = dot(normals[i], axis);
+            deterministic_sum(support_normals.len(), |i| {
+                let d = dot(support_normals[i], axis);
                 if d.abs() >= cos_support {
-                    areas[i] * d.signum() * normals[i][k]
+                    support_areas[i] * d.signum() * support_normals[i][k]
                 } else {
                     0.0
                 }

@@ -8,6 +8,8 @@ pub mod quality;
 pub mod volume;
 
 pub use distance::{hausdorff_distance, minimum_distance, surface_distance, SurfaceDistance};
-pub use normal_curvature::{average_normal_curvature, vertex_normal_curvature};
+pub use normal_curvature::{
+    average_normal_curvature, vertex_normal_curvature, vertex_normal_turn, NormalTurn,
+};
 pub use quality::{displacement_stats, displacements, min_triangle_angle, DisplacementStats};
 pub use volume::{enclosed_volume, EnclosedVolume};

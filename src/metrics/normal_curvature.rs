@@ -10,8 +10,28 @@ use rayon::prelude::*;
 /// Normal curvature per vertex in degrees; `None` where the vertex has no incident face with
 /// area or its normal cancels out (unreferenced or degenerate neighbourhoods).
 pub fn vertex_normal_curvature(mesh: &Mesh, topology: &Topology) -> Vec<Option<f32>> {
+    vertex_normal_turn(mesh, topology)
+        .into_iter()
+        .map(|t| t.map(|t| t.deg))
+        .collect()
+}
+
+/// How much the surface turns at a vertex: the normal curvature, and the same angle per mm.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NormalTurn {
+    /// Largest angle between the vertex normal and an incident face normal (degrees).
+    pub deg: f32,
+    /// Largest such angle divided by the distance from the vertex to that face's centroid
+    /// (degrees per mm): about 57.3 / radius of curvature, whatever the edge length, so that a
+    /// finely sampled round surface is not taken for a flat one.
+    pub deg_per_mm: f32,
+}
+
+/// [`NormalTurn`] per vertex; `None` where the normal curvature is undefined.
+pub fn vertex_normal_turn(mesh: &Mesh, topology: &Topology) -> Vec<Option<NormalTurn>> {
     let fnormals = face_normals(mesh);
     let vnormals = vertex_normals(mesh, topology);
+    let (p, triangles) = (mesh.positions(), mesh.triangles());
     (0..mesh.n_vertices())
         .into_par_iter()
         .map(|v| {
@@ -19,16 +39,32 @@ pub fn vertex_normal_curvature(mesh: &Mesh, topology: &Topology) -> Vec<Option<f
             if n == [0.0; 3] {
                 return None;
             }
-            let mut largest: Option<f64> = None;
+            let mut largest: Option<(f64, f64)> = None;
             for &f in topology.vertex_faces(v) {
                 let m = fnormals[f as usize];
                 if m == [0.0; 3] {
                     continue;
                 }
                 let angle = angle_between(n, m);
-                largest = Some(largest.map_or(angle, |a| a.max(angle)));
+                let t = triangles[f as usize];
+                let distance = (0..3)
+                    .map(|k| {
+                        let c = (t.iter().map(|&w| p[w as usize][k] as f64).sum::<f64>()) / 3.0;
+                        (c - p[v][k] as f64).powi(2)
+                    })
+                    .sum::<f64>()
+                    .sqrt();
+                let rate = if distance > 0.0 {
+                    angle / distance
+                } else {
+                    f64::INFINITY
+                };
+                largest = Some(largest.map_or((angle, rate), |(a, r)| (a.max(angle), r.max(rate))));
             }
-            largest.map(|a| a.to_degrees() as f32)
+            largest.map(|(a, r)| NormalTurn {
+                deg: a.to_degrees() as f32,
+                deg_per_mm: r.to_degrees() as f32,
+            })
         })
         .collect()
 }

@@ -94,6 +94,8 @@ pub struct ContextSummary {
     pub tau_auto: bool,
     pub n_flat_regions: usize,
     pub n_terraces: usize,
+    /// Caps found only on the smoothed copy (ends clipped obliquely, terraced on the mesh).
+    pub n_caps_from_smoothed_copy: usize,
     pub caps: Vec<CapSummary>,
     /// Smallest distance to the reference structures (mm), when references were given.
     pub reference_distance_min_mm: Option<f64>,
@@ -145,6 +147,7 @@ pub fn context_summary(ctx: &Context, n_vertices: usize) -> ContextSummary {
         tau_auto: ctx.staircase.as_ref().is_some_and(|s| s.tau_auto),
         n_flat_regions: ctx.caps.n_regions,
         n_terraces: ctx.caps.n_terraces,
+        n_caps_from_smoothed_copy: ctx.caps.n_from_smoothed_copy,
         caps: ctx
             .caps
             .caps
@@ -199,10 +202,11 @@ impl ContextSummary {
         );
         let _ = writeln!(
             s,
-            "  flat regions {} (terraces {}), caps {}",
+            "  flat regions {} (terraces {}), caps {} ({} found on the smoothed copy)",
             self.n_flat_regions,
             self.n_terraces,
-            self.caps.len()
+            self.caps.len(),
+            self.n_caps_from_smoothed_copy
         );
         for c in &self.caps {
             let _ = writeln!(
