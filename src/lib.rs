@@ -6,6 +6,7 @@
 pub mod analysis;
 pub mod cfd;
 pub mod extract;
+pub mod guard;
 pub mod hugepages;
 pub mod io;
 pub mod job;

@@ -252,6 +252,8 @@ pub fn process_case(plan: &Plan, case: LoadedCase) -> CaseOutput {
     // A case that cannot be processed as listed (unreadable folder, two files for a structure)
     // fails as a whole, without computing anything.
     let inputs: &[LoadedFile] = if case_errors.is_empty() { &all } else { &[] };
+    // Each processed structure before and after, in world mm, for the pair table.
+    let mut kept_surfaces: Vec<(String, Mesh, Mesh)> = Vec::new();
     for f in inputs {
         let t0 = Instant::now();
         let settings = plan.settings_for(&f.structure);
@@ -272,8 +274,22 @@ pub fn process_case(plan: &Plan, case: LoadedCase) -> CaseOutput {
             cfd: None,
         };
         let stem = plan.output_stem(&case.input.id, &f.structure);
-        match process_structure(plan, f, &stem, &settings, &by_name, &mut grids, &mut report) {
+        let mut surface = None;
+        let processed = process_structure(
+            plan,
+            f,
+            &stem,
+            &settings,
+            &by_name,
+            &mut grids,
+            &mut report,
+            &mut surface,
+        );
+        match processed {
             Ok(outputs) => {
+                if let Some((before, after)) = surface {
+                    kept_surfaces.push((f.structure.clone(), before, after));
+                }
                 // Two structures must not write one file (`vessel` with the cfd profile writes
                 // vessel_wall.stl, as a structure `vessel_wall` would).
                 let taken = outputs
@@ -300,6 +316,24 @@ pub fn process_case(plan: &Plan, case: LoadedCase) -> CaseOutput {
         );
         structures.push(report);
     }
+    let guard = (!kept_surfaces.is_empty()).then(|| {
+        let t0 = Instant::now();
+        let list: Vec<crate::guard::Surface> = kept_surfaces
+            .iter()
+            .map(|(name, before, after)| crate::guard::Surface {
+                name,
+                before,
+                after,
+            })
+            .collect();
+        let table = crate::guard::pair_table(&list);
+        timings.insert(
+            "guard".into(),
+            serde_json::json!(t0.elapsed().as_secs_f64()),
+        );
+        table
+    });
+    drop(kept_surfaces);
     let mut errors = case_errors;
     errors.extend(
         structures
@@ -320,6 +354,7 @@ pub fn process_case(plan: &Plan, case: LoadedCase) -> CaseOutput {
         inputs: mesh_inputs,
         label_maps: label_map_infos,
         structures,
+        guard,
         warnings: case_warnings,
         errors,
     };
@@ -361,6 +396,7 @@ fn process_structure(
     case: &BTreeMap<&str, &LoadedFile>,
     grids: &mut BTreeMap<(String, Option<usize>), TriangleGrid>,
     report: &mut StructureReport,
+    surfaces: &mut Option<(Mesh, Mesh)>,
 ) -> Result<Vec<(String, Vec<u8>)>, String> {
     let loaded = file.mesh.as_ref().map_err(|e| e.clone())?;
     let mesh = &loaded.mesh;
@@ -400,7 +436,10 @@ fn process_structure(
                 .warnings
                 .push("skip = true: copied unchanged, without the cfd profile".into());
         }
-        return encode(plan, stem, &in_world(&place, mesh), loaded, &[]);
+        let world = in_world(&place, mesh).into_owned();
+        let out = encode(plan, stem, &world, loaded, &[]);
+        *surfaces = Some((world.clone(), world));
+        return out;
     }
     let topology = Topology::build(mesh);
     // The cfd profile's patches, found before smoothing so the smoother holds them, and their
@@ -593,6 +632,7 @@ fn process_structure(
             remeshed: done.remeshed,
         });
         report.status = "ok".into();
+        *surfaces = Some((in_world(&place, before).into_owned(), done.mesh));
         return Ok(out);
     }
     // Annotations: the smoothing weights when a smoother ran, and the displacement.
@@ -603,7 +643,9 @@ fn process_structure(
         }
         props.push(("displacement", &displacement));
     }
-    let out = encode(plan, stem, &in_world(&place, &smoothed), loaded, &props)?;
+    let smoothed_world = in_world(&place, &smoothed).into_owned();
+    let out = encode(plan, stem, &smoothed_world, loaded, &props)?;
     report.status = "ok".into();
+    *surfaces = Some((in_world(&place, before).into_owned(), smoothed_world));
     Ok(out)
 }

@@ -135,6 +135,7 @@ fn internal_error(id: String, key: String) -> CaseOutput {
             inputs: Vec::new(),
             label_maps: Vec::new(),
             structures: Vec::new(),
+            guard: None,
             warnings: Vec::new(),
             errors: vec![
                 "internal error while processing this case (a bug in destair; please report it)"

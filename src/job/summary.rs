@@ -37,6 +37,11 @@ pub struct SummaryRow {
     pub remesh_hausdorff_mm: Option<f64>,
     /// cfd profile: narrowest lumen after / before smoothing.
     pub lumen_ratio: Option<f64>,
+    /// Most negative change of the minimum distance to any structure near this one (mm; the
+    /// case's pair table); the case's worst is the smallest over its rows.
+    pub gap_change_mm: Option<f64>,
+    /// Structures this one touches after smoothing and did not before.
+    pub new_contacts: Option<u64>,
     pub error: String,
 }
 
@@ -121,9 +126,15 @@ pub fn rows_of(report: &Value) -> Vec<SummaryRow> {
             edges_within_20_percent: None,
             remesh_hausdorff_mm: None,
             lumen_ratio: None,
+            gap_change_mm: None,
+            new_contacts: None,
             error,
         }];
     }
+    let pairs = report["guard"]["pairs"]
+        .as_array()
+        .cloned()
+        .unwrap_or_default();
     structures
         .iter()
         .map(|s| {
@@ -146,9 +157,14 @@ pub fn rows_of(report: &Value) -> Vec<SummaryRow> {
                         .collect()
                 })
                 .unwrap_or_default();
+            let name = s["name"].as_str().unwrap_or("");
+            let mine: Vec<&Value> = pairs
+                .iter()
+                .filter(|p| p["a"].as_str() == Some(name) || p["b"].as_str() == Some(name))
+                .collect();
             SummaryRow {
                 case: case.clone(),
-                structure: s["name"].as_str().unwrap_or("").to_string(),
+                structure: name.to_string(),
                 status: s["status"].as_str().unwrap_or("").to_string(),
                 method: s["method"]["method"].as_str().unwrap_or("").to_string(),
                 n_vertices: s["n_vertices"].as_u64().unwrap_or(0),
@@ -167,6 +183,15 @@ pub fn rows_of(report: &Value) -> Vec<SummaryRow> {
                 edges_within_20_percent: cfd["checks"]["edges"]["within_20_percent"].as_f64(),
                 remesh_hausdorff_mm: cfd["remeshed"]["hausdorff_mm"].as_f64(),
                 lumen_ratio: cfd["checks"]["narrowing"]["ratio"].as_f64(),
+                gap_change_mm: mine
+                    .iter()
+                    .filter_map(|p| p["change_mm"].as_f64())
+                    .reduce(f64::min),
+                new_contacts: report["guard"].is_object().then(|| {
+                    mine.iter()
+                        .filter(|p| p["new_contact"].as_bool() == Some(true))
+                        .count() as u64
+                }),
                 error: s["error"].as_str().unwrap_or("").to_string(),
             }
         })
@@ -273,7 +298,7 @@ fn csv_field(s: &str) -> String {
 
 /// The rows as CSV with a header line.
 pub fn to_csv(rows: &[SummaryRow]) -> String {
-    let mut out = String::from("case,structure,status,method,n_vertices,hausdorff_mm,mean_distance_mm,volume_percent,curvature_before_deg,curvature_after_deg,max_d_voxel_diagonals,reference_distance_before_mm,reference_distance_after_mm,staircase_share,n_caps,patches,min_angle_deg,edges_within_20_percent,remesh_hausdorff_mm,lumen_ratio,error\n");
+    let mut out = String::from("case,structure,status,method,n_vertices,hausdorff_mm,mean_distance_mm,volume_percent,curvature_before_deg,curvature_after_deg,max_d_voxel_diagonals,reference_distance_before_mm,reference_distance_after_mm,staircase_share,n_caps,patches,min_angle_deg,edges_within_20_percent,remesh_hausdorff_mm,lumen_ratio,gap_change_mm,new_contacts,error\n");
     let num = |v: Option<f64>| v.map_or(String::new(), |x| format!("{x}"));
     for r in rows {
         let fields = [
@@ -297,6 +322,8 @@ pub fn to_csv(rows: &[SummaryRow]) -> String {
             num(r.edges_within_20_percent),
             num(r.remesh_hausdorff_mm),
             num(r.lumen_ratio),
+            num(r.gap_change_mm),
+            r.new_contacts.map_or(String::new(), |c| c.to_string()),
             csv_field(&r.error),
         ];
         out.push_str(&fields.join(","));

@@ -150,6 +150,28 @@ pub(crate) fn check_size(n_vertices: usize, n_triangles: usize) -> Result<(), Me
     Ok(())
 }
 
+/// An axis-aligned box from `lo` to `hi` (mm) as a closed, outward-oriented mesh of 12
+/// triangles; corner i is at x = hi if i & 1, y = hi if i & 2, z = hi if i & 4.
+#[cfg(test)]
+pub(crate) fn cuboid(lo: [f32; 3], hi: [f32; 3]) -> Mesh {
+    let p: Vec<[f32; 3]> = (0..8)
+        .map(|i| std::array::from_fn(|k| if i & (1 << k) == 0 { lo[k] } else { hi[k] }))
+        .collect();
+    let quads = [
+        [0, 2, 3, 1], // z = lo, normal -z
+        [4, 5, 7, 6], // z = hi
+        [0, 1, 5, 4], // y = lo
+        [2, 6, 7, 3], // y = hi
+        [0, 4, 6, 2], // x = lo
+        [1, 3, 7, 5], // x = hi
+    ];
+    let t = quads
+        .iter()
+        .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
+        .collect();
+    Mesh::new(p, t).expect("a valid box")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

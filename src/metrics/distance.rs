@@ -63,7 +63,74 @@ pub fn minimum_distance(
     reference: &Mesh,
     reference_grid: &TriangleGrid,
 ) -> f64 {
-    let a = reference_grid.distances(mesh.positions());
-    let b = mesh_grid.distances(reference.positions());
-    a.iter().chain(&b).cloned().fold(f64::INFINITY, f64::min)
+    // An upper bound from a sample of vertices, then every vertex searched only within the
+    // best distance so far: a search from a far vertex ends after a ring or two. The minimum
+    // of exact distances does not depend on the order, so the result is the full search's.
+    let sample = |points: &[[f32; 3]], grid: &TriangleGrid| {
+        let step = (points.len() / 64).max(1);
+        points
+            .iter()
+            .step_by(step)
+            .filter_map(|&p| grid.nearest(p).map(|n| n.distance))
+            .fold(f64::INFINITY, f64::min)
+    };
+    let bound =
+        sample(mesh.positions(), reference_grid).min(sample(reference.positions(), mesh_grid));
+    let a = smallest_distance_within(reference_grid, mesh.positions(), bound);
+    smallest_distance_within(mesh_grid, reference.positions(), a)
+}
+
+/// The smallest distance from `points` to the surface of `grid` if it is at most `bound`,
+/// else `bound`; in parallel, each chunk narrowing its search as it finds closer points.
+fn smallest_distance_within(grid: &TriangleGrid, points: &[[f32; 3]], bound: f64) -> f64 {
+    use rayon::prelude::*;
+    points
+        .par_chunks(4096)
+        .map(|chunk| {
+            let mut best = bound;
+            for &p in chunk {
+                if let Some(n) = grid.nearest_matching_within(p, best, |_| true) {
+                    best = best.min(n.distance);
+                }
+            }
+            best
+        })
+        .reduce(|| bound, f64::min)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Triangles scattered in a box: a soup, as a mesh.
+    fn soup(rng: &mut fastrand::Rng, n: usize, offset: [f32; 3]) -> Mesh {
+        let mut positions = Vec::new();
+        let mut triangles = Vec::new();
+        for t in 0..n as u32 {
+            let c: [f32; 3] = std::array::from_fn(|k| offset[k] + 20.0 * rng.f32());
+            for _ in 0..3 {
+                positions.push(std::array::from_fn(|k| c[k] + 2.0 * rng.f32() - 1.0));
+            }
+            triangles.push([3 * t, 3 * t + 1, 3 * t + 2]);
+        }
+        Mesh::new(positions, triangles).unwrap()
+    }
+
+    #[test]
+    fn bounded_minimum_distance_equals_the_full_search() {
+        let mut rng = fastrand::Rng::with_seed(11);
+        for round in 0..40 {
+            let gap = 25.0 * rng.f32() - 5.0;
+            let (na, nb) = (1 + rng.usize(..3000), 1 + rng.usize(..3000));
+            let a = soup(&mut rng, na, [0.0; 3]);
+            let b = soup(&mut rng, nb, [gap, 0.5 * gap, 0.0]);
+            let (ga, gb) = (TriangleGrid::build(&a), TriangleGrid::build(&b));
+            let full = gb
+                .distances(a.positions())
+                .into_iter()
+                .chain(ga.distances(b.positions()))
+                .fold(f64::INFINITY, f64::min);
+            assert_eq!(minimum_distance(&a, &ga, &b, &gb), full, "round {round}");
+        }
+    }
 }

@@ -14,7 +14,7 @@ use std::path::Path;
 use thiserror::Error;
 
 /// The named cases `destair phantom` knows.
-pub const CASE_NAMES: [&str; 11] = [
+pub const CASE_NAMES: [&str; 12] = [
     "sphere-iso",
     "sphere-aniso",
     "sphere-aniso-1-16",
@@ -24,6 +24,7 @@ pub const CASE_NAMES: [&str; 11] = [
     "sphere-aniso-top",
     "cap-cylinder",
     "neck",
+    "neck-groove",
     "aneurysm",
     "thin-vessel",
 ];
@@ -185,8 +186,24 @@ pub fn named_case(name: &str, options: &PhantomOptions) -> Result<PhantomCase, P
             ("cylinder with flat caps merged with a tilted cuboid on a 1 x 1 x 2 mm grid (Moench 2012, §4.3)", v, vec![("cap-cylinder", 1)])
         }
         "neck" => {
-            let v = neck_volume(&mut rng, [160, 160, 20], [0.45, 0.45, 3.0], 1.0, false);
+            let v = neck_volume(
+                &mut rng,
+                [160, 160, 20],
+                [0.45, 0.45, 3.0],
+                1.0,
+                VeinAt::Apart,
+            );
             ("tumor, vein and trachea at 0.45 x 0.45 x 3 mm; the vein passes a few tenths of a mm from the tumor (Moench 2010, distance-aware)", v, vec![("tumor", 1), ("vein", 2), ("trachea", 3)])
+        }
+        "neck-groove" => {
+            let v = neck_volume(
+                &mut rng,
+                [160, 160, 20],
+                [0.45, 0.45, 3.0],
+                1.0,
+                VeinAt::Groove,
+            );
+            ("the neck with the vein in a groove of the tumor, one voxel (0.45 mm) apart: smoothing the tumor fills the groove towards the vein", v, vec![("tumor", 1), ("vein", 2), ("trachea", 3)])
         }
         "aneurysm" => {
             let v = aneurysm_volume(&mut rng);
@@ -334,13 +351,24 @@ fn remove_top_sector(v: &mut LabelVolume, label: u16, center: [f64; 3], fraction
     });
 }
 
+/// Where the neck phantom's vein lies against the tumour.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum VeinAt {
+    /// A few tenths of a mm from the tumour's side, one voxel of background between.
+    Apart,
+    /// Sharing a face with the tumour, as neighbouring segmentations do.
+    Touching,
+    /// In a groove of the tumour, one voxel of background between.
+    Groove,
+}
+
 /// Tumor (1), vein (2) and trachea (3); `scale` shrinks the anatomy for small cohort cases.
 fn neck_volume(
     rng: &mut fastrand::Rng,
     dims: [usize; 3],
     spacing: [f64; 3],
     scale: f64,
-    touching: bool,
+    vein_at: VeinAt,
 ) -> LabelVolume {
     let mut v = LabelVolume::new(dims, spacing, [0.0; 3]);
     let size: [f64; 3] = std::array::from_fn(|k| dims[k] as f64 * spacing[k]);
@@ -362,7 +390,11 @@ fn neck_volume(
     v.paint(&tumor, 1);
     // The vein runs along z just past the tumor's +x side, bending slightly towards it.
     let vein_r = 3.5 * scale;
-    let x0 = c[0] + r[0] + vein_r + 0.3;
+    // In a groove, the vein's axis lies inside the tumour's outline and the tumour wraps round it.
+    let x0 = match vein_at {
+        VeinAt::Groove => c[0] + r[0] + 0.2 * vein_r,
+        _ => c[0] + r[0] + vein_r + 0.3,
+    };
     let vein = Shape::Tube {
         points: vec![
             [x0 + 2.0 * scale, c[1] - 2.0 * scale, -5.0],
@@ -371,10 +403,11 @@ fn neck_volume(
         ],
         radii: vec![vein_r, vein_r, vein_r * 1.1],
     };
+    let groove = vein_at == VeinAt::Groove;
     v.paint_where(vein.bounds().0, vein.bounds().1, 2, |p, current| {
-        current == 0 && vein.contains(p)
+        (current == 0 || (groove && current == 1)) && vein.contains(p)
     });
-    if touching {
+    if vein_at == VeinAt::Touching {
         // Segmentations of neighbours share a face where they touch: grow the vein into it.
         let x_touch = c[0] + r[0] + 0.5 * vein_r;
         let wider = Shape::Tube {
@@ -620,7 +653,7 @@ pub fn cohort_case(index: usize, seed: u64) -> PhantomCase {
         (extent / spacing[1]) as usize,
         ((30.0 + 20.0 * rng.f64()) / spacing[2]) as usize,
     ];
-    let volume = neck_volume(&mut rng, dims, spacing, scale, false);
+    let volume = neck_volume(&mut rng, dims, spacing, scale, VeinAt::Apart);
     let options = PhantomOptions {
         rotate_x_deg: if rng.bool() {
             0.0
@@ -657,7 +690,13 @@ pub fn label_map_case(
     use crate::volume::{Grid, Space};
     let mut rng = fastrand::Rng::with_seed(options.seed);
     let v = match name {
-        "labelmap-neck" => neck_volume(&mut rng, [160, 160, 20], [0.45, 0.45, 3.0], 1.0, true),
+        "labelmap-neck" => neck_volume(
+            &mut rng,
+            [160, 160, 20],
+            [0.45, 0.45, 3.0],
+            1.0,
+            VeinAt::Touching,
+        ),
         other => return Err(PhantomError::UnknownName(other.to_string())),
     };
     let rotation = rotation_matrix([options.rotate_x_deg, options.rotate_y_deg, 0.0]);

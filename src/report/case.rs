@@ -4,6 +4,7 @@
 
 use crate::cfd::rims::RimSmoothing;
 use crate::cfd::{PatchKind, Patches, RemeshSummary, SurfaceChecks};
+use crate::guard::PairTable;
 use crate::report::compare::CompareReport;
 use crate::report::inspect::ContextSummary;
 use crate::report::label_map::{LabelMapInfo, LabelSource};
@@ -148,6 +149,10 @@ pub struct CaseReport {
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub label_maps: Vec<LabelMapInfo>,
     pub structures: Vec<StructureReport>,
+    /// Every near pair of structures before and after, and self-intersections (absent when
+    /// no structure was processed).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub guard: Option<PairTable>,
     pub warnings: Vec<String>,
     pub errors: Vec<String>,
 }
@@ -258,6 +263,65 @@ impl CaseReport {
                 let _ = writeln!(s, "\n`{}`: {w}", st.name);
             }
         }
+        if let Some(g) = &self.guard {
+            s.push_str(&guard_markdown(g));
+        }
         s
     }
+}
+
+/// The pair table as Markdown.
+fn guard_markdown(g: &PairTable) -> String {
+    let mut s = String::from("\n## Structures near each other\n\n");
+    if g.pairs.is_empty() {
+        s.push_str("No two structures come within 10 mm of each other.\n");
+    } else {
+        s.push_str("| pair | min. distance before (mm) | after (mm) | change (mm) | contact before | contact after |\n|---|---|---|---|---|---|\n");
+        for p in &g.pairs {
+            let contact = |c: bool, new: bool| match (c, new) {
+                (false, _) => "no",
+                (true, true) => "**new**",
+                (true, false) => "yes",
+            };
+            let _ = writeln!(
+                s,
+                "| `{}` - `{}` | {:.4} | {:.4} | {:+.4} | {} | {} |",
+                p.a,
+                p.b,
+                p.min_distance_before_mm,
+                p.min_distance_after_mm,
+                p.change_mm,
+                contact(p.contact_before, false),
+                contact(p.contact_after, p.new_contact)
+            );
+        }
+    }
+    if g.n_far_pairs > 0 {
+        let _ = writeln!(
+            s,
+            "\n{} pair(s) further than 10 mm apart are not measured.",
+            g.n_far_pairs
+        );
+    }
+    let crossing: Vec<String> = g
+        .structures
+        .iter()
+        .filter(|r| r.self_intersections_before + r.self_intersections_after > 0)
+        .map(|r| {
+            format!(
+                "`{}` {} -> {}",
+                r.structure, r.self_intersections_before, r.self_intersections_after
+            )
+        })
+        .collect();
+    if crossing.is_empty() {
+        s.push_str("\nNo structure intersects itself, before or after.\n");
+    } else {
+        let _ = writeln!(
+            s,
+            "\nSelf-intersecting triangle pairs (before -> after): {}",
+            crossing.join(", ")
+        );
+    }
+    s
 }

@@ -1,0 +1,265 @@
+//! Inter-structure guard: after a case's structures are smoothed, every pair of structures that
+//! comes near another (configured as a reference or not, skipped ones included) is measured
+//! before and after: the minimum distance, and whether the surfaces touch or cross (exact
+//! triangle-triangle tests); each structure's self-intersections too. The table shows in the
+//! report whether smoothing made a new contact or ate into a margin.
+
+use crate::mesh::geometry::bounding_box;
+use crate::mesh::Mesh;
+use crate::metrics::minimum_distance;
+use crate::spatial::intersect::{mesh_intersections, self_intersections};
+use crate::spatial::TriangleGrid;
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// Pairs whose bounding boxes stay further apart than this (mm), before and after, are not
+/// measured: smoothing moves surfaces by a voxel or so, and margins that wide are not at risk.
+pub const NEAR_MM: f64 = 10.0;
+
+/// One structure as it came in and as it goes out, in the same (world) coordinates.
+pub struct Surface<'a> {
+    pub name: &'a str,
+    pub before: &'a Mesh,
+    pub after: &'a Mesh,
+}
+
+/// Two structures before and after smoothing.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PairRow {
+    pub a: String,
+    pub b: String,
+    /// Smallest vertex-to-surface distance in either direction (mm); 0 where they touch or cross.
+    pub min_distance_before_mm: f64,
+    pub min_distance_after_mm: f64,
+    /// After minus before (mm): negative when smoothing brought them closer.
+    pub change_mm: f64,
+    /// The surfaces touch or cross (some pair of closed triangles meets).
+    pub contact_before: bool,
+    pub contact_after: bool,
+    /// Triangle pairs that meet after smoothing.
+    pub n_contact_pairs_after: usize,
+    /// A contact after smoothing that was not there before (an overlap already in the input is
+    /// reported by `contact_before`, not counted as new).
+    pub new_contact: bool,
+}
+
+/// Self-intersections of one structure (pairs of its own triangles that cross beyond what they
+/// share). The input is examined only when the output has some; `before` is 0 otherwise.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SelfRow {
+    pub structure: String,
+    pub self_intersections_before: usize,
+    pub self_intersections_after: usize,
+}
+
+/// The guard's measurements for a case.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PairTable {
+    /// Pairs within [`NEAR_MM`] of each other, in name order.
+    pub pairs: Vec<PairRow>,
+    /// Pairs further apart, not measured.
+    pub n_far_pairs: usize,
+    pub structures: Vec<SelfRow>,
+}
+
+impl PairTable {
+    /// The most negative distance change over the pairs (mm); `None` without pairs.
+    pub fn worst_gap_change_mm(&self) -> Option<f64> {
+        self.pairs.iter().map(|p| p.change_mm).reduce(f64::min)
+    }
+
+    /// Pairs that touch after smoothing and did not before.
+    pub fn n_new_contacts(&self) -> usize {
+        self.pairs.iter().filter(|p| p.new_contact).count()
+    }
+}
+
+/// Gap between two bounding boxes (mm); infinite when either mesh has no vertex.
+fn box_gap(a: &Mesh, b: &Mesh) -> f64 {
+    let (Some(a), Some(b)) = (bounding_box(a), bounding_box(b)) else {
+        return f64::INFINITY;
+    };
+    (0..3)
+        .map(|k| {
+            let gap = (a.min[k] - b.max[k]).max(b.min[k] - a.max[k]).max(0.0) as f64;
+            gap * gap
+        })
+        .sum::<f64>()
+        .sqrt()
+}
+
+/// The structure left smoothing unchanged (skipped, or nothing moved).
+fn unchanged(s: &Surface) -> bool {
+    s.before.positions() == s.after.positions() && s.before.triangles() == s.after.triangles()
+}
+
+/// Minimum distance and contact of two meshes.
+fn measure(a: &Mesh, grid_a: &TriangleGrid, b: &Mesh, grid_b: &TriangleGrid) -> (f64, usize) {
+    let contacts = mesh_intersections(a, b).len();
+    let distance = if contacts > 0 {
+        0.0
+    } else {
+        minimum_distance(a, grid_a, b, grid_b)
+    };
+    (distance, contacts)
+}
+
+/// Measures every near pair of `surfaces` and each one's self-intersections.
+pub fn pair_table(surfaces: &[Surface]) -> PairTable {
+    let mut order: Vec<usize> = (0..surfaces.len()).collect();
+    order.sort_by(|&i, &j| surfaces[i].name.cmp(surfaces[j].name));
+    let mut near = Vec::new();
+    let mut n_far_pairs = 0;
+    for (x, &i) in order.iter().enumerate() {
+        for &j in &order[x + 1..] {
+            let (s, t) = (&surfaces[i], &surfaces[j]);
+            if box_gap(s.before, t.before).min(box_gap(s.after, t.after)) <= NEAR_MM {
+                near.push((i, j));
+            } else {
+                n_far_pairs += 1;
+            }
+        }
+    }
+    // Grids only for structures in a near pair (after = before for skipped ones, one grid).
+    let mut needed = vec![false; surfaces.len()];
+    for &(i, j) in &near {
+        needed[i] = true;
+        needed[j] = true;
+    }
+    let grids: Vec<Option<(TriangleGrid, Option<TriangleGrid>)>> = surfaces
+        .par_iter()
+        .zip(&needed)
+        .map(|(s, &need)| {
+            need.then(|| {
+                let before = TriangleGrid::build(s.before);
+                (
+                    before,
+                    (!unchanged(s)).then(|| TriangleGrid::build(s.after)),
+                )
+            })
+        })
+        .collect();
+    let grid = |i: usize, after: bool| {
+        let (before, moved) = grids[i].as_ref().expect("grid built for near pairs");
+        if after {
+            moved.as_ref().unwrap_or(before)
+        } else {
+            before
+        }
+    };
+    let pairs = near
+        .iter()
+        .map(|&(i, j)| {
+            let (s, t) = (&surfaces[i], &surfaces[j]);
+            let (before, contacts_before) =
+                measure(s.before, grid(i, false), t.before, grid(j, false));
+            let (after, contacts_after) = measure(s.after, grid(i, true), t.after, grid(j, true));
+            PairRow {
+                a: s.name.to_string(),
+                b: t.name.to_string(),
+                min_distance_before_mm: before,
+                min_distance_after_mm: after,
+                change_mm: after - before,
+                contact_before: contacts_before > 0,
+                contact_after: contacts_after > 0,
+                n_contact_pairs_after: contacts_after,
+                new_contact: contacts_after > 0 && contacts_before == 0,
+            }
+        })
+        .collect();
+    // The input is examined only where the output intersects itself (to tell whether it did
+    // already): the exact tests on the many coplanar neighbours of a staircase are not cheap.
+    let structures = order
+        .iter()
+        .map(|&i| {
+            let s = &surfaces[i];
+            let after = self_intersections(s.after).len();
+            let before = if after == 0 {
+                0
+            } else if unchanged(s) {
+                after
+            } else {
+                self_intersections(s.before).len()
+            };
+            SelfRow {
+                structure: s.name.to_string(),
+                self_intersections_before: before,
+                self_intersections_after: after,
+            }
+        })
+        .collect();
+    PairTable {
+        pairs,
+        n_far_pairs,
+        structures,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    use crate::mesh::cuboid;
+
+    #[test]
+    fn distances_contacts_and_far_pairs_by_hand() {
+        let a = cuboid([0.0; 3], [1.0; 3]);
+        // 0.5 mm from a, then moved to touch it face to face.
+        let b0 = cuboid([1.5, 0.0, 0.0], [2.5, 1.0, 1.0]);
+        let b1 = cuboid([1.0, 0.2, 0.2], [2.0, 0.8, 0.8]);
+        // Overlapping a already in the input, unchanged.
+        let c = cuboid([0.5, -1.0, 0.5], [0.8, 0.1, 0.8]);
+        // Far from everything.
+        let d = cuboid([40.0, 0.0, 0.0], [41.0, 1.0, 1.0]);
+        let table = pair_table(&[
+            Surface {
+                name: "b",
+                before: &b0,
+                after: &b1,
+            },
+            Surface {
+                name: "a",
+                before: &a,
+                after: &a,
+            },
+            Surface {
+                name: "c",
+                before: &c,
+                after: &c,
+            },
+            Surface {
+                name: "d",
+                before: &d,
+                after: &d,
+            },
+        ]);
+        let names: Vec<(&str, &str)> = table
+            .pairs
+            .iter()
+            .map(|p| (p.a.as_str(), p.b.as_str()))
+            .collect();
+        assert_eq!(names, [("a", "b"), ("a", "c"), ("b", "c")]);
+        assert_eq!(table.n_far_pairs, 3);
+        let ab = &table.pairs[0];
+        assert_eq!(ab.min_distance_before_mm, 0.5);
+        assert_eq!(ab.min_distance_after_mm, 0.0);
+        assert_eq!(ab.change_mm, -0.5);
+        assert!(!ab.contact_before && ab.contact_after && ab.new_contact);
+        let ac = &table.pairs[1];
+        assert!(ac.contact_before && ac.contact_after && !ac.new_contact);
+        assert_eq!((ac.min_distance_before_mm, ac.change_mm), (0.0, 0.0));
+        // b and c: 0.7 apart along x before; after, 0.2 along x and 0.1 along y.
+        let bc = &table.pairs[2];
+        assert!((bc.min_distance_before_mm - 0.7).abs() < 1e-6, "{bc:?}");
+        assert!(
+            (bc.min_distance_after_mm - 0.05f64.sqrt()).abs() < 1e-6,
+            "{bc:?}"
+        );
+        assert_eq!(table.worst_gap_change_mm(), Some(-0.5));
+        assert_eq!(table.n_new_contacts(), 1);
+        assert!(table
+            .structures
+            .iter()
+            .all(|r| r.self_intersections_before == 0 && r.self_intersections_after == 0));
+    }
+}
