@@ -475,9 +475,6 @@ fn the_report_measures_every_near_pair_before_and_after() {
     let case = tmp.path().join("cases/neck");
     let made = destair(&["phantom", "neck", "--out", case.to_str().unwrap()]);
     assert!(made.status.success());
-    let groove = tmp.path().join("cases/neck-groove");
-    let made = destair(&["phantom", "neck-groove", "--out", groove.to_str().unwrap()]);
-    assert!(made.status.success());
     let config = tmp.path().join("guard.toml");
     std::fs::write(
         &config,
@@ -554,14 +551,48 @@ skip = true
         tumor.split(',').nth(col).unwrap().parse::<f64>().unwrap(),
         worst
     );
-    // Beside the tumour the vein keeps its distance; in the tumour's groove, smoothing the
-    // tumour (uniform NPC, the vein skipped, not a reference) fills the groove towards it:
-    // 0.32 -> 0.12 mm.
-    let pair = |case: &str| {
-        let r: serde_json::Value = serde_json::from_slice(
-            &std::fs::read(tmp.path().join(format!("out/{case}/report.json"))).unwrap(),
+    // Beside the tumour the vein keeps its distance (the groove phantom, where it does not,
+    // is the guard's test below).
+    let apart = pairs
+        .iter()
+        .find(|p| p["a"] == "tumor" && p["b"] == "vein")
+        .unwrap();
+    assert!(apart["change_mm"].as_f64().unwrap().abs() < 0.01, "{apart}");
+    assert_eq!(guard["repair_rounds"], 0);
+}
+
+/// `[guard]` on the groove phantom: uniform NPC of the tumour alone eats half the gap to the
+/// skipped vein; with the guard the gap loss stays within 0.05 mm, no contact appears, and the
+/// curvature reduction away from the vein is that of the unguarded run within a few percent.
+/// With no repair allowed, the case fails with the pair named and the run exits with 3.
+#[test]
+fn the_guard_keeps_the_gap_repairs_locally_and_fails_what_it_cannot_repair() {
+    use destair::metrics::vertex_normal_curvature;
+    use destair::spatial::TriangleGrid;
+    let tmp = tempfile::tempdir().unwrap();
+    let case = tmp.path().join("cases/g");
+    assert!(
+        destair(&["phantom", "neck-groove", "--out", case.to_str().unwrap()])
+            .status
+            .success()
+    );
+    let run = |name: &str, guard: &str| {
+        let config = tmp.path().join(format!("{name}.toml"));
+        std::fs::write(
+            &config,
+            format!(
+                "[input]\nroots = [\"cases\"]\ncase_depth = 1\n[output]\nroot = \"{name}\"\n[defaults]\nmethod = \"npc\"\niterations = 30\nlambda = 1.0\nstaircase = false\n[[structure]]\npattern = \"vein\"\nskip = true\n{guard}"
+            ),
         )
         .unwrap();
+        let status = destair(&["run", config.to_str().unwrap()]).status;
+        let report: serde_json::Value = serde_json::from_slice(
+            &std::fs::read(tmp.path().join(format!("{name}/g/report.json"))).unwrap(),
+        )
+        .unwrap();
+        (status, report)
+    };
+    let tumor_vein = |r: &serde_json::Value| {
         r["guard"]["pairs"]
             .as_array()
             .unwrap()
@@ -570,11 +601,94 @@ skip = true
             .cloned()
             .unwrap()
     };
-    let apart = pair("neck");
-    assert!(apart["change_mm"].as_f64().unwrap().abs() < 0.01, "{apart}");
-    let grooved = pair("neck-groove");
-    let before = grooved["min_distance_before_mm"].as_f64().unwrap();
-    let after = grooved["min_distance_after_mm"].as_f64().unwrap();
-    assert!(before > 0.3 && after < 0.5 * before, "{grooved}");
-    assert!(!grooved["contact_after"].as_bool().unwrap());
+    let (status, free) = run(
+        "free",
+        "[guard]\nmax_gap_loss_mm = 100\nforbid_new_contacts = false\n",
+    );
+    assert!(status.success());
+    let p = tumor_vein(&free);
+    assert!(p["change_mm"].as_f64().unwrap() < -0.1, "{p}");
+    assert_eq!(free["guard"]["repair_rounds"], 0);
+
+    let (status, guarded) = run("guarded", "");
+    assert!(status.success(), "{guarded}");
+    let p = tumor_vein(&guarded);
+    assert!(p["change_mm"].as_f64().unwrap() >= -0.05, "{p}");
+    assert!(!p["contact_after"].as_bool().unwrap());
+    assert!(guarded["guard"]["repair_rounds"].as_u64().unwrap() >= 1);
+    let held = guarded["guard"]["held"][0]["n_vertices"].as_u64().unwrap();
+    let n = guarded["structures"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|s| s["name"] == "tumor")
+        .unwrap()["n_vertices"]
+        .as_u64()
+        .unwrap();
+    assert!(held > 0 && held < n / 10, "held {held} of {n}");
+
+    // Curvature reduction more than 3 mm from the vein: guarded against free.
+    let read = |p: std::path::PathBuf| {
+        destair::io::read_mesh(&p, &Default::default())
+            .unwrap()
+            .mesh
+    };
+    let vein = read(case.join("vein.ply"));
+    let grid = TriangleGrid::build(&vein);
+    let input = read(case.join("tumor.ply"));
+    let away: Vec<bool> = grid
+        .distances(input.positions())
+        .iter()
+        .map(|&d| d > 3.0)
+        .collect();
+    let mean_away = |m: &destair::Mesh| {
+        let c = vertex_normal_curvature(m, &destair::Topology::build(m));
+        let v: Vec<f64> = c
+            .iter()
+            .zip(&away)
+            .filter_map(|(c, &a)| if a { c.map(f64::from) } else { None })
+            .collect();
+        v.iter().sum::<f64>() / v.len() as f64
+    };
+    let before = mean_away(&input);
+    let reduction = |out: &str| before - mean_away(&read(tmp.path().join(out).join("g/tumor.ply")));
+    let (free_r, guarded_r) = (reduction("free"), reduction("guarded"));
+    eprintln!(
+        "gap {} -> free {} / guarded {}; held {held} of {n}; curvature away {before} deg, reduced by {free_r} (free) / {guarded_r} (guarded)",
+        tumor_vein(&free)["min_distance_before_mm"],
+        tumor_vein(&free)["min_distance_after_mm"],
+        tumor_vein(&guarded)["min_distance_after_mm"]
+    );
+    assert!(free_r > 0.0);
+    assert!(
+        (guarded_r - free_r).abs() <= 0.05 * free_r,
+        "curvature reduction away from the vein: guarded {guarded_r}, free {free_r}"
+    );
+
+    // A looser limit for this one pair: nothing to repair.
+    let (status, loose) = run(
+        "loose",
+        "[[guard.pair]]\na = \"vein\"\nb = \"tumor\"\nmax_gap_loss_mm = 0.5\n",
+    );
+    assert!(status.success());
+    assert_eq!(loose["guard"]["repair_rounds"], 0);
+    assert_eq!(
+        tumor_vein(&loose)["min_distance_after_mm"],
+        tumor_vein(&free)["min_distance_after_mm"]
+    );
+
+    // No repair allowed: the tumour fails with the pair named, its mesh is not written.
+    let (status, failed) = run("strict", "[guard]\nmax_repairs = 0\n");
+    assert_eq!(status.code(), Some(3));
+    assert_eq!(failed["status"], "failed");
+    let tumor = failed["structures"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|s| s["name"] == "tumor")
+        .unwrap();
+    let error = tumor["error"].as_str().unwrap();
+    assert!(error.contains("`tumor` and `vein`"), "{error}");
+    assert!(!tmp.path().join("strict/g/tumor.ply").exists());
+    assert!(tmp.path().join("strict/g/trachea.ply").exists());
 }

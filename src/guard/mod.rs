@@ -60,6 +60,19 @@ pub struct PairTable {
     /// Pairs further apart, not measured.
     pub n_far_pairs: usize,
     pub structures: Vec<SelfRow>,
+    /// Rounds of repair `[guard]` needed (0: none was).
+    pub repair_rounds: usize,
+    /// Vertices held back per repaired structure.
+    pub held: Vec<HeldRow>,
+    /// What still breaks `[guard]` after the repairs (the case fails).
+    pub violations: Vec<String>,
+}
+
+/// How many vertices of a structure the guard held in place.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct HeldRow {
+    pub structure: String,
+    pub n_vertices: usize,
 }
 
 impl PairTable {
@@ -72,6 +85,96 @@ impl PairTable {
     pub fn n_new_contacts(&self) -> usize {
         self.pairs.iter().filter(|p| p.new_contact).count()
     }
+}
+
+/// What smoothing may do to the distances between a case's structures (`[guard]`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct GuardPolicy {
+    /// Largest loss of minimum distance a pair may suffer (mm).
+    pub max_gap_loss_mm: f64,
+    /// A pair that does not touch before smoothing must not touch after.
+    pub forbid_new_contacts: bool,
+    /// Repair rounds before the case fails; 0 checks without repairing.
+    pub max_repairs: usize,
+    /// Other limits for named pairs: (a, b, max_gap_loss_mm, forbid_new_contacts).
+    pub pairs: Vec<(String, String, f64, bool)>,
+}
+
+impl Default for GuardPolicy {
+    fn default() -> Self {
+        Self {
+            max_gap_loss_mm: 0.05,
+            forbid_new_contacts: true,
+            max_repairs: 4,
+            pairs: Vec::new(),
+        }
+    }
+}
+
+impl GuardPolicy {
+    /// The limits for the pair `a`, `b` (either order): (max gap loss in mm, forbid contact).
+    pub fn limits(&self, a: &str, b: &str) -> (f64, bool) {
+        self.pairs
+            .iter()
+            .find(|(x, y, _, _)| (x == a && y == b) || (x == b && y == a))
+            .map_or((self.max_gap_loss_mm, self.forbid_new_contacts), |p| {
+                (p.2, p.3)
+            })
+    }
+
+    /// The pairs of `table` that break the policy, each with what it broke.
+    pub fn violations<'t>(&self, table: &'t PairTable) -> Vec<(&'t PairRow, String)> {
+        table
+            .pairs
+            .iter()
+            .filter_map(|p| {
+                let (max_loss, forbid) = self.limits(&p.a, &p.b);
+                if forbid && p.new_contact {
+                    Some((
+                        p,
+                        format!(
+                            "`{}` and `{}` touch after smoothing ({} triangle pairs meet) and did not before",
+                            p.a, p.b, p.n_contact_pairs_after
+                        ),
+                    ))
+                } else if !p.contact_before && -p.change_mm > max_loss {
+                    Some((
+                        p,
+                        format!(
+                            "the distance between `{}` and `{}` fell from {:.4} to {:.4} mm, more than the {max_loss} mm allowed",
+                            p.a, p.b, p.min_distance_before_mm, p.min_distance_after_mm
+                        ),
+                    ))
+                } else {
+                    None
+                }
+            })
+            .collect()
+    }
+}
+
+/// Vertices of `mesh` closer than `within` (mm) to the surface of `other`, widened by `rings`
+/// rings of neighbours: where a repair holds a structure back.
+pub fn vertices_near(
+    mesh: &Mesh,
+    topology: &crate::mesh::Topology,
+    other: &TriangleGrid,
+    within: f64,
+    rings: usize,
+) -> Vec<bool> {
+    let mut near: Vec<bool> = mesh
+        .positions()
+        .par_iter()
+        .map(|&p| other.nearest_matching_within(p, within, |_| true).is_some())
+        .collect();
+    for _ in 0..rings {
+        let grown: Vec<bool> = (0..near.len())
+            .into_par_iter()
+            .map(|v| near[v] || topology.neighbors(v).iter().any(|&u| near[u as usize]))
+            .collect();
+        near = grown;
+    }
+    near
 }
 
 /// Gap between two bounding boxes (mm); infinite when either mesh has no vertex.
@@ -106,6 +209,24 @@ fn measure(a: &Mesh, grid_a: &TriangleGrid, b: &Mesh, grid_b: &TriangleGrid) -> 
 
 /// Measures every near pair of `surfaces` and each one's self-intersections.
 pub fn pair_table(surfaces: &[Surface]) -> PairTable {
+    table_reusing(surfaces, None)
+}
+
+/// As [`pair_table`] after only the structures named in `changed` were smoothed again: the
+/// other pairs' rows, every pair's "before" figures and the unchanged structures'
+/// self-intersections are taken from `previous`.
+pub fn update_pair_table(
+    surfaces: &[Surface],
+    previous: &PairTable,
+    changed: &[&str],
+) -> PairTable {
+    table_reusing(surfaces, Some((previous, changed)))
+}
+
+fn table_reusing(surfaces: &[Surface], reuse: Option<(&PairTable, &[&str])>) -> PairTable {
+    let changed = |name: &str| reuse.is_none_or(|(_, c)| c.contains(&name));
+    let old_row =
+        |a: &str, b: &str| reuse.and_then(|(t, _)| t.pairs.iter().find(|p| p.a == a && p.b == b));
     let mut order: Vec<usize> = (0..surfaces.len()).collect();
     order.sort_by(|&i, &j| surfaces[i].name.cmp(surfaces[j].name));
     let mut near = Vec::new();
@@ -120,11 +241,18 @@ pub fn pair_table(surfaces: &[Surface]) -> PairTable {
             }
         }
     }
-    // Grids only for structures in a near pair (after = before for skipped ones, one grid).
+    // Pairs that must be measured again (a side changed, or no row to reuse), and grids only
+    // for their structures (after = before for skipped ones, one grid).
+    let remeasure = |i: usize, j: usize| {
+        let (a, b) = (surfaces[i].name, surfaces[j].name);
+        changed(a) || changed(b) || old_row(a, b).is_none()
+    };
     let mut needed = vec![false; surfaces.len()];
     for &(i, j) in &near {
-        needed[i] = true;
-        needed[j] = true;
+        if remeasure(i, j) {
+            needed[i] = true;
+            needed[j] = true;
+        }
     }
     let grids: Vec<Option<(TriangleGrid, Option<TriangleGrid>)>> = surfaces
         .par_iter()
@@ -151,8 +279,14 @@ pub fn pair_table(surfaces: &[Surface]) -> PairTable {
         .iter()
         .map(|&(i, j)| {
             let (s, t) = (&surfaces[i], &surfaces[j]);
-            let (before, contacts_before) =
-                measure(s.before, grid(i, false), t.before, grid(j, false));
+            let old = old_row(s.name, t.name);
+            if let (Some(row), false) = (old, remeasure(i, j)) {
+                return row.clone();
+            }
+            let (before, contacts_before) = match old {
+                Some(row) => (row.min_distance_before_mm, usize::from(row.contact_before)),
+                None => measure(s.before, grid(i, false), t.before, grid(j, false)),
+            };
             let (after, contacts_after) = measure(s.after, grid(i, true), t.after, grid(j, true));
             PairRow {
                 a: s.name.to_string(),
@@ -173,6 +307,10 @@ pub fn pair_table(surfaces: &[Surface]) -> PairTable {
         .iter()
         .map(|&i| {
             let s = &surfaces[i];
+            let kept = reuse.and_then(|(t, _)| t.structures.iter().find(|r| r.structure == s.name));
+            if let (Some(row), false) = (kept, changed(s.name)) {
+                return row.clone();
+            }
             let after = self_intersections(s.after).len();
             let before = if after == 0 {
                 0
@@ -192,6 +330,9 @@ pub fn pair_table(surfaces: &[Surface]) -> PairTable {
         pairs,
         n_far_pairs,
         structures,
+        repair_rounds: 0,
+        held: Vec::new(),
+        violations: Vec::new(),
     }
 }
 
@@ -261,5 +402,26 @@ mod tests {
             .structures
             .iter()
             .all(|r| r.self_intersections_before == 0 && r.self_intersections_after == 0));
+    }
+
+    #[test]
+    fn an_update_after_one_structure_changed_equals_measuring_everything() {
+        let a = cuboid([0.0; 3], [1.0; 3]);
+        let b0 = cuboid([1.5, 0.0, 0.0], [2.5, 1.0, 1.0]);
+        let b1 = cuboid([1.2, 0.0, 0.0], [2.2, 1.0, 1.0]);
+        let c = cuboid([0.0, 1.4, 0.0], [1.0, 2.4, 1.0]);
+        let surfaces = |b_after| {
+            [("a", &a, &a), ("b", &b0, b_after), ("c", &c, &c)].map(|(name, before, after)| {
+                Surface {
+                    name,
+                    before,
+                    after,
+                }
+            })
+        };
+        let first = pair_table(&surfaces(&b0));
+        let updated = update_pair_table(&surfaces(&b1), &first, &["b"]);
+        assert_eq!(updated, pair_table(&surfaces(&b1)));
+        assert!((updated.pairs[0].change_mm + 0.3).abs() < 1e-6);
     }
 }

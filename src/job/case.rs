@@ -4,6 +4,7 @@
 //! A failing structure is recorded in the report; it never stops the case or the cohort.
 
 use super::discover::CaseInput;
+use super::guard::{guard_case, Kept};
 use super::label_map::{
     header_geometry, label_structures, load_label_map, LabelSource, LoadedLabelMap, Place,
 };
@@ -252,88 +253,65 @@ pub fn process_case(plan: &Plan, case: LoadedCase) -> CaseOutput {
     // A case that cannot be processed as listed (unreadable folder, two files for a structure)
     // fails as a whole, without computing anything.
     let inputs: &[LoadedFile] = if case_errors.is_empty() { &all } else { &[] };
-    // Each processed structure before and after, in world mm, for the pair table.
-    let mut kept_surfaces: Vec<(String, Mesh, Mesh)> = Vec::new();
-    for f in inputs {
+    // Each processed structure before and after, in world mm, for the pair table, with the
+    // index of its input and whether a repair can re-smooth it.
+    let mut kept: Vec<Kept> = Vec::new();
+    for (index, f) in inputs.iter().enumerate() {
         let t0 = Instant::now();
-        let settings = plan.settings_for(&f.structure);
-        let mut report = StructureReport {
-            name: f.structure.clone(),
-            status: "failed".into(),
-            error: None,
-            settings: serde_json::to_value(&settings).unwrap_or_default(),
-            n_vertices: 0,
-            n_triangles: 0,
-            method: None,
-            smooth: None,
-            context: None,
-            metrics: None,
-            outputs: Vec::new(),
-            warnings: Vec::new(),
-            source: f.source.clone(),
-            cfd: None,
-        };
-        let stem = plan.output_stem(&case.input.id, &f.structure);
-        let mut surface = None;
-        let processed = process_structure(
+        let (report, outputs) = run_structure(
             plan,
+            &case.input.id,
             f,
-            &stem,
-            &settings,
             &by_name,
             &mut grids,
-            &mut report,
-            &mut surface,
+            None,
+            &files,
+            &mut kept,
+            index,
         );
-        match processed {
-            Ok(outputs) => {
-                if let Some((before, after)) = surface {
-                    kept_surfaces.push((f.structure.clone(), before, after));
-                }
-                // Two structures must not write one file (`vessel` with the cfd profile writes
-                // vessel_wall.stl, as a structure `vessel_wall` would).
-                let taken = outputs
-                    .iter()
-                    .find(|(n, _)| files.iter().any(|(m, _): &(String, Vec<u8>)| m == n));
-                if let Some((name, _)) = taken {
-                    report.status = "failed".into();
-                    report.error = Some(format!(
-                        "its output {name} is also an output of another structure of this case; rename one (or change [output] naming)"
-                    ));
-                } else {
-                    report.outputs = outputs.iter().map(|(n, _)| n.clone()).collect();
-                    files.extend(outputs);
-                }
-            }
-            Err(e) => {
-                report.status = "failed".into();
-                report.error = Some(e);
-            }
-        }
+        files.extend(outputs);
         timings.insert(
             f.structure.clone(),
             serde_json::json!(t0.elapsed().as_secs_f64()),
         );
         structures.push(report);
     }
-    let guard = (!kept_surfaces.is_empty()).then(|| {
+    let guard = (!kept.is_empty()).then(|| {
         let t0 = Instant::now();
-        let list: Vec<crate::guard::Surface> = kept_surfaces
-            .iter()
-            .map(|(name, before, after)| crate::guard::Surface {
-                name,
-                before,
-                after,
-            })
-            .collect();
-        let table = crate::guard::pair_table(&list);
+        let names: Vec<String> = inputs.iter().map(|f| f.structure.clone()).collect();
+        let mut rerun = |input: usize,
+                         held: &[bool],
+                         files: &mut Vec<(String, Vec<u8>)>,
+                         kept: &mut Vec<Kept>| {
+            let (report, outputs) = run_structure(
+                plan,
+                &case.input.id,
+                &inputs[input],
+                &by_name,
+                &mut grids,
+                Some(held),
+                files,
+                kept,
+                input,
+            );
+            files.extend(outputs);
+            report
+        };
+        let table = guard_case(
+            &plan.guard,
+            &names,
+            &mut files,
+            &mut structures,
+            &mut kept,
+            &mut rerun,
+        );
         timings.insert(
             "guard".into(),
             serde_json::json!(t0.elapsed().as_secs_f64()),
         );
         table
     });
-    drop(kept_surfaces);
+    drop(kept);
     let mut errors = case_errors;
     errors.extend(
         structures
@@ -371,6 +349,90 @@ pub fn process_case(plan: &Plan, case: LoadedCase) -> CaseOutput {
     }
 }
 
+/// Processes one structure (again, with `held` vertices kept in place, for a repair): its
+/// report and outputs, and its surfaces in `kept` (replacing an earlier entry for it).
+#[allow(clippy::too_many_arguments)]
+fn run_structure(
+    plan: &Plan,
+    case_id: &str,
+    f: &LoadedFile,
+    by_name: &BTreeMap<&str, &LoadedFile>,
+    grids: &mut BTreeMap<(String, Option<usize>), TriangleGrid>,
+    held: Option<&[bool]>,
+    files: &[(String, Vec<u8>)],
+    kept: &mut Vec<Kept>,
+    index: usize,
+) -> (StructureReport, Vec<(String, Vec<u8>)>) {
+    let settings = plan.settings_for(&f.structure);
+    let mut report = StructureReport {
+        name: f.structure.clone(),
+        status: "failed".into(),
+        error: None,
+        settings: serde_json::to_value(&settings).unwrap_or_default(),
+        n_vertices: 0,
+        n_triangles: 0,
+        method: None,
+        smooth: None,
+        context: None,
+        metrics: None,
+        outputs: Vec::new(),
+        warnings: Vec::new(),
+        source: f.source.clone(),
+        cfd: None,
+    };
+    let stem = plan.output_stem(case_id, &f.structure);
+    let mut surface = None;
+    let processed = process_structure(
+        plan,
+        f,
+        &stem,
+        &settings,
+        by_name,
+        grids,
+        &mut report,
+        &mut surface,
+        held,
+    );
+    kept.retain(|k| k.input != index);
+    let outputs = match processed {
+        Ok(outputs) => {
+            // Two structures must not write one file (`vessel` with the cfd profile writes
+            // vessel_wall.stl, as a structure `vessel_wall` would).
+            let taken = outputs
+                .iter()
+                .find(|(n, _)| files.iter().any(|(m, _)| m == n));
+            if let Some((name, _)) = taken {
+                report.status = "failed".into();
+                report.error = Some(format!(
+                    "its output {name} is also an output of another structure of this case; rename one (or change [output] naming)"
+                ));
+                Vec::new()
+            } else {
+                if let Some((before, after)) = surface {
+                    kept.push(Kept {
+                        input: index,
+                        name: f.structure.clone(),
+                        repairable: report.smooth.is_some()
+                            && report.cfd.is_none()
+                            && after.n_vertices() == before.n_vertices(),
+                        before,
+                        after,
+                    });
+                    kept.sort_by_key(|k| k.input);
+                }
+                report.outputs = outputs.iter().map(|(n, _)| n.clone()).collect();
+                outputs
+            }
+        }
+        Err(e) => {
+            report.status = "failed".into();
+            report.error = Some(e);
+            Vec::new()
+        }
+    };
+    (report, outputs)
+}
+
 /// Where a structure's file came from, for messages.
 fn origin(f: &LoadedFile) -> String {
     match &f.source {
@@ -397,6 +459,7 @@ fn process_structure(
     grids: &mut BTreeMap<(String, Option<usize>), TriangleGrid>,
     report: &mut StructureReport,
     surfaces: &mut Option<(Mesh, Mesh)>,
+    held: Option<&[bool]>,
 ) -> Result<Vec<(String, Vec<u8>)>, String> {
     let loaded = file.mesh.as_ref().map_err(|e| e.clone())?;
     let mesh = &loaded.mesh;
@@ -550,6 +613,12 @@ fn process_structure(
                 *f |= h;
             }
         }
+        // Vertices the inter-structure guard holds back stay where they are.
+        if let Some(held) = held {
+            for (f, &h) in fixed.iter_mut().zip(held) {
+                *f |= h;
+            }
+        }
         let (positions, stats) = smooth(
             &start,
             &topology,
@@ -632,7 +701,7 @@ fn process_structure(
             remeshed: done.remeshed,
         });
         report.status = "ok".into();
-        *surfaces = Some((in_world(&place, before).into_owned(), done.mesh));
+        *surfaces = Some((in_world(&place, mesh).into_owned(), done.mesh));
         return Ok(out);
     }
     // Annotations: the smoothing weights when a smoother ran, and the displacement.
@@ -646,6 +715,6 @@ fn process_structure(
     let smoothed_world = in_world(&place, &smoothed).into_owned();
     let out = encode(plan, stem, &smoothed_world, loaded, &props)?;
     report.status = "ok".into();
-    *surfaces = Some((in_world(&place, before).into_owned(), smoothed_world));
+    *surfaces = Some((in_world(&place, mesh).into_owned(), smoothed_world));
     Ok(out)
 }

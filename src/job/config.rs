@@ -191,6 +191,31 @@ pub struct StructureConfig {
     pub settings: Settings,
 }
 
+/// `[guard]`: what smoothing may do to the distances between a case's structures.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GuardConfig {
+    /// Largest loss of minimum distance a pair may suffer (mm; default 0.05).
+    pub max_gap_loss_mm: Option<f64>,
+    /// A pair that does not touch before smoothing must not touch after (default true).
+    pub forbid_new_contacts: Option<bool>,
+    /// Repair rounds before a case fails (default 4; 0 checks without repairing).
+    pub max_repairs: Option<usize>,
+    /// `[[guard.pair]]`: other limits for one pair of structures.
+    #[serde(default, rename = "pair")]
+    pub pairs: Vec<GuardPairConfig>,
+}
+
+/// `[[guard.pair]]`: limits for the pair of structures named `a` and `b` (either order).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GuardPairConfig {
+    pub a: String,
+    pub b: String,
+    pub max_gap_loss_mm: Option<f64>,
+    pub forbid_new_contacts: Option<bool>,
+}
+
 /// The whole configuration file.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -207,6 +232,8 @@ pub struct Config {
     /// over names in the files.
     #[serde(default)]
     pub labels: std::collections::BTreeMap<String, String>,
+    #[serde(default)]
+    pub guard: GuardConfig,
 }
 
 impl Config {

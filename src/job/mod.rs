@@ -4,6 +4,7 @@
 pub mod case;
 pub mod config;
 pub mod discover;
+mod guard;
 pub mod label_map;
 pub mod lock;
 pub mod outputs;

@@ -39,6 +39,8 @@ pub struct Plan {
     pub workers: usize,
     pub memory_budget_bytes: u64,
     pub read_mode: ReadMode,
+    /// `[guard]`: the distances between structures smoothing must keep.
+    pub guard: crate::guard::GuardPolicy,
     defaults: Settings,
     structures: Vec<(String, glob::Pattern, Settings)>,
 }
@@ -201,6 +203,7 @@ impl Plan {
                 )));
             }
         }
+        let guard = guard_policy(&config.guard).map_err(invalid)?;
         Ok(Plan {
             config_path: path.to_path_buf(),
             roots: config.input.roots.iter().map(|r| absolute(r)).collect(),
@@ -231,6 +234,7 @@ impl Plan {
             } else {
                 ReadMode::Mmap
             },
+            guard,
             defaults: config.defaults,
             structures,
         })
@@ -337,11 +341,61 @@ impl Plan {
             "structures": settings,
             "space": self.space,
             "labels": self.label_names,
+            "guard": self.guard,
         });
         blake3::hash(value.to_string().as_bytes())
             .to_hex()
             .to_string()
     }
+}
+
+/// Largest number of guard repair rounds.
+const MAX_GUARD_REPAIRS: usize = 20;
+
+/// Validates `[guard]`.
+fn guard_policy(c: &super::config::GuardConfig) -> Result<crate::guard::GuardPolicy, String> {
+    let defaults = crate::guard::GuardPolicy::default();
+    let loss = |v: Option<f64>, what: &str| match v {
+        None => Ok(defaults.max_gap_loss_mm),
+        Some(x) if x.is_finite() && x >= 0.0 => Ok(x),
+        Some(x) => Err(format!(
+            "{what} max_gap_loss_mm = {x}: must be a distance of 0 mm or more"
+        )),
+    };
+    let max_gap_loss_mm = loss(c.max_gap_loss_mm, "[guard]")?;
+    let forbid_new_contacts = c
+        .forbid_new_contacts
+        .unwrap_or(defaults.forbid_new_contacts);
+    let max_repairs = c.max_repairs.unwrap_or(defaults.max_repairs);
+    if max_repairs > MAX_GUARD_REPAIRS {
+        return Err(format!(
+            "[guard] max_repairs = {max_repairs}: must be between 0 and {MAX_GUARD_REPAIRS}"
+        ));
+    }
+    let mut pairs = Vec::new();
+    for p in &c.pairs {
+        if p.a == p.b || p.a.is_empty() || p.b.is_empty() {
+            return Err(format!(
+                "[[guard.pair]] a = {:?}, b = {:?}: two different structure names",
+                p.a, p.b
+            ));
+        }
+        pairs.push((
+            p.a.clone(),
+            p.b.clone(),
+            match p.max_gap_loss_mm {
+                None => max_gap_loss_mm,
+                given => loss(given, "[[guard.pair]]")?,
+            },
+            p.forbid_new_contacts.unwrap_or(forbid_new_contacts),
+        ));
+    }
+    Ok(crate::guard::GuardPolicy {
+        max_gap_loss_mm,
+        forbid_new_contacts,
+        max_repairs,
+        pairs,
+    })
 }
 
 #[cfg(test)]
@@ -388,6 +442,33 @@ skip = false
         assert_eq!(tumor.method, MethodKind::Laplace);
         assert!(tumor.references.is_empty());
         assert_eq!(p.matching_tables("vessel"), vec!["ve*"]);
+    }
+
+    #[test]
+    fn guard_defaults_pairs_and_bad_values() {
+        let base = "[input]\nroots = [\"c\"]\n[output]\nroot = \"o\"\n";
+        let g = plan(base).unwrap().guard;
+        assert_eq!(g, crate::guard::GuardPolicy::default());
+        assert_eq!(g.limits("tumor", "vein"), (0.05, true));
+        let p = plan(&format!(
+            "{base}[guard]\nmax_gap_loss_mm = 0.1\n[[guard.pair]]\na = \"tumor\"\nb = \"vein\"\nforbid_new_contacts = false\n"
+        ))
+        .unwrap();
+        // The pair keeps the section's distance unless it gives its own.
+        assert_eq!(p.guard.limits("vein", "tumor"), (0.1, false));
+        assert_eq!(p.guard.limits("tumor", "trachea"), (0.1, true));
+        for (bad, says) in [
+            (
+                "[guard]\nmax_gap_loss_mm = -0.1\n",
+                "max_gap_loss_mm = -0.1",
+            ),
+            ("[guard]\nmax_repairs = 21\n", "max_repairs = 21"),
+            ("[[guard.pair]]\na = \"x\"\nb = \"x\"\n", "[[guard.pair]]"),
+            ("[guard]\nmax_gap_los_mm = 1\n", "max_gap_los_mm"),
+        ] {
+            let e = plan(&format!("{base}{bad}")).unwrap_err().to_string();
+            assert!(e.contains(says), "{bad}: {e}");
+        }
     }
 
     #[test]

@@ -303,6 +303,22 @@ fn guard_markdown(g: &PairTable) -> String {
             g.n_far_pairs
         );
     }
+    if g.repair_rounds > 0 {
+        let held: Vec<String> = g
+            .held
+            .iter()
+            .map(|h| format!("`{}` {}", h.structure, h.n_vertices))
+            .collect();
+        let _ = writeln!(
+            s,
+            "\nThe guard repaired in {} round(s), holding vertices in place: {}.",
+            g.repair_rounds,
+            held.join(", ")
+        );
+    }
+    for v in &g.violations {
+        let _ = writeln!(s, "\n- **guard failed**: {v}");
+    }
     let crossing: Vec<String> = g
         .structures
         .iter()
