@@ -201,6 +201,8 @@ pub struct GuardConfig {
     pub forbid_new_contacts: Option<bool>,
     /// Repair rounds before a case fails (default 4; 0 checks without repairing).
     pub max_repairs: Option<usize>,
+    /// Check each smoothed structure for self-intersections (default true).
+    pub self_intersections: Option<bool>,
     /// `[[guard.pair]]`: other limits for one pair of structures.
     #[serde(default, rename = "pair")]
     pub pairs: Vec<GuardPairConfig>,

@@ -30,7 +30,11 @@ pub(super) struct Kept {
 
 /// The pair table of the kept structures; after a repair, only what involves the structures
 /// smoothed again (`changed`) is measured again.
-fn measure_pairs(kept: &[Kept], previous: Option<(&PairTable, &[&str])>) -> PairTable {
+fn measure_pairs(
+    kept: &[Kept],
+    previous: Option<(&PairTable, &[&str])>,
+    check_self: bool,
+) -> PairTable {
     let list: Vec<Surface> = kept
         .iter()
         .map(|k| Surface {
@@ -40,8 +44,8 @@ fn measure_pairs(kept: &[Kept], previous: Option<(&PairTable, &[&str])>) -> Pair
         })
         .collect();
     match previous {
-        Some((table, changed)) => update_pair_table(&list, table, changed),
-        None => pair_table(&list),
+        Some((table, changed)) => update_pair_table(&list, table, changed, check_self),
+        None => pair_table(&list, check_self),
     }
 }
 
@@ -60,7 +64,7 @@ pub(super) fn guard_case(
     rerun: &mut Rerun,
 ) -> PairTable {
     let mut held: BTreeMap<usize, Vec<bool>> = BTreeMap::new();
-    let mut table = measure_pairs(kept, None);
+    let mut table = measure_pairs(kept, None, policy.self_intersections);
     let mut rounds = 0;
     while rounds < policy.max_repairs {
         let broken: Vec<(String, String, f64)> = policy
@@ -109,7 +113,7 @@ pub(super) fn guard_case(
             let held_here = held.get(&input).cloned().unwrap_or_default();
             structures[at] = rerun(input, &held_here, files, kept);
         }
-        table = measure_pairs(kept, Some((&table, &changed)));
+        table = measure_pairs(kept, Some((&table, &changed)), policy.self_intersections);
     }
     table.repair_rounds = rounds;
     table.held = held

@@ -394,6 +394,7 @@ fn guard_policy(c: &super::config::GuardConfig) -> Result<crate::guard::GuardPol
         max_gap_loss_mm,
         forbid_new_contacts,
         max_repairs,
+        self_intersections: c.self_intersections.unwrap_or(defaults.self_intersections),
         pairs,
     })
 }
@@ -457,6 +458,9 @@ skip = false
         // The pair keeps the section's distance unless it gives its own.
         assert_eq!(p.guard.limits("vein", "tumor"), (0.1, false));
         assert_eq!(p.guard.limits("tumor", "trachea"), (0.1, true));
+        assert!(p.guard.self_intersections);
+        let off = plan(&format!("{base}[guard]\nself_intersections = false\n")).unwrap();
+        assert!(!off.guard.self_intersections);
         for (bad, says) in [
             (
                 "[guard]\nmax_gap_loss_mm = -0.1\n",

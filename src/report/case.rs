@@ -283,16 +283,22 @@ fn guard_markdown(g: &PairTable) -> String {
                 (true, true) => "**new**",
                 (true, false) => "yes",
             };
+            // A pair that touched before is not measured after.
+            let (after, change, contact_after) = match (p.min_distance_after_mm, p.contact_after) {
+                (Some(d), Some(c)) => (
+                    format!("{d:.4}"),
+                    format!("{:+.4}", p.change_mm),
+                    contact(c, p.new_contact),
+                ),
+                _ => ("-".into(), "-".into(), "(touched before)"),
+            };
             let _ = writeln!(
                 s,
-                "| `{}` - `{}` | {:.4} | {:.4} | {:+.4} | {} | {} |",
+                "| `{}` - `{}` | {:.4} | {after} | {change} | {} | {contact_after} |",
                 p.a,
                 p.b,
                 p.min_distance_before_mm,
-                p.min_distance_after_mm,
-                p.change_mm,
                 contact(p.contact_before, false),
-                contact(p.contact_after, p.new_contact)
             );
         }
     }

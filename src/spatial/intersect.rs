@@ -332,45 +332,87 @@ pub fn self_intersections(mesh: &Mesh) -> Vec<[u32; 2]> {
     pairs
 }
 
-/// Pairs of faces `[f of a, g of b]` where two meshes intersect (touching counts). Sorted;
-/// exact; degenerate faces are left out.
-pub fn mesh_intersections(a: &Mesh, b: &Mesh) -> Vec<[u32; 2]> {
-    let corners = |m: &Mesh| -> Vec<[P; 3]> {
-        let p = m.positions();
-        m.triangles()
-            .iter()
-            .map(|t| t.map(|v| p[v as usize]))
-            .collect()
-    };
-    let (ca, cb) = (corners(a), corners(b));
-    let boxes_a: Vec<Aabb> = ca.iter().map(|&t| aabb(t)).collect();
-    let boxes_b: Vec<Aabb> = cb.iter().map(|&t| aabb(t)).collect();
-    let valid_b: Vec<bool> = cb.par_iter().map(|&t| !is_exactly_degenerate(t)).collect();
-    let grid = BoxGrid::build(&boxes_b, &boxes_a);
-    let mut pairs: Vec<[u32; 2]> = (0..ca.len())
-        .into_par_iter()
-        .filter(|&f| !is_exactly_degenerate(ca[f]))
-        .flat_map_iter(|f| {
-            let mut found = Vec::new();
-            for c in cells(grid.dims, grid.cell_ranges(&boxes_a[f])) {
-                for &g in grid.items(c) {
-                    let g = g as usize;
-                    if !valid_b[g]
-                        || !boxes_overlap(&boxes_a[f], &boxes_b[g])
-                        || grid.owner_cell(&boxes_a[f], &boxes_b[g]) != c
-                    {
-                        continue;
-                    }
-                    if triangles_intersect(ca[f], cb[g]) {
-                        found.push([f as u32, g as u32]);
+/// Candidate triangle pairs of two meshes: a grid over b's triangle boxes.
+struct CrossSearch {
+    ca: Vec<[P; 3]>,
+    cb: Vec<[P; 3]>,
+    boxes_a: Vec<Aabb>,
+    boxes_b: Vec<Aabb>,
+    valid_b: Vec<bool>,
+    grid: BoxGrid,
+}
+
+impl CrossSearch {
+    fn new(a: &Mesh, b: &Mesh) -> Self {
+        let corners = |m: &Mesh| -> Vec<[P; 3]> {
+            let p = m.positions();
+            m.triangles()
+                .iter()
+                .map(|t| t.map(|v| p[v as usize]))
+                .collect()
+        };
+        let (ca, cb) = (corners(a), corners(b));
+        let boxes_a: Vec<Aabb> = ca.iter().map(|&t| aabb(t)).collect();
+        let boxes_b: Vec<Aabb> = cb.iter().map(|&t| aabb(t)).collect();
+        let valid_b: Vec<bool> = cb.par_iter().map(|&t| !is_exactly_degenerate(t)).collect();
+        let grid = BoxGrid::build(&boxes_b, &boxes_a);
+        CrossSearch {
+            ca,
+            cb,
+            boxes_a,
+            boxes_b,
+            valid_b,
+            grid,
+        }
+    }
+
+    /// Faces of b that face `f` of a meets, in grid order; only the first when `first`.
+    fn hits(&self, f: usize, first: bool) -> Vec<[u32; 2]> {
+        let mut found = Vec::new();
+        if is_exactly_degenerate(self.ca[f]) {
+            return found;
+        }
+        let grid = &self.grid;
+        for c in cells(grid.dims, grid.cell_ranges(&self.boxes_a[f])) {
+            for &g in grid.items(c) {
+                let g = g as usize;
+                if !self.valid_b[g]
+                    || !boxes_overlap(&self.boxes_a[f], &self.boxes_b[g])
+                    || grid.owner_cell(&self.boxes_a[f], &self.boxes_b[g]) != c
+                {
+                    continue;
+                }
+                if triangles_intersect(self.ca[f], self.cb[g]) {
+                    found.push([f as u32, g as u32]);
+                    if first {
+                        return found;
                     }
                 }
             }
-            found
-        })
+        }
+        found
+    }
+}
+
+/// Pairs of faces `[f of a, g of b]` where two meshes intersect (touching counts). Sorted;
+/// exact; degenerate faces are left out.
+pub fn mesh_intersections(a: &Mesh, b: &Mesh) -> Vec<[u32; 2]> {
+    let search = CrossSearch::new(a, b);
+    let mut pairs: Vec<[u32; 2]> = (0..search.ca.len())
+        .into_par_iter()
+        .flat_map_iter(|f| search.hits(f, false))
         .collect();
     pairs.sort_unstable();
     pairs
+}
+
+/// Whether two meshes touch or cross anywhere: [`mesh_intersections`] is not empty, found
+/// without listing every pair (structures that share a face meet at the first one tried).
+pub fn meshes_touch(a: &Mesh, b: &Mesh) -> bool {
+    let search = CrossSearch::new(a, b);
+    (0..search.ca.len())
+        .into_par_iter()
+        .any(|f| !search.hits(f, true).is_empty())
 }
 
 #[cfg(test)]
@@ -608,5 +650,14 @@ mod tests {
         };
         assert_eq!(mesh_intersections(&a, &b(0.0)), vec![[0, 1]]);
         assert!(mesh_intersections(&a, &b(1.5)).is_empty());
+        // Touching at one point (the corner of b on a's face) counts.
+        assert_eq!(mesh_intersections(&a, &b(1.0)), vec![[0, 1]]);
+        for z in [0.0, 1.0, 1.5, -1.0, -1.01] {
+            assert_eq!(
+                meshes_touch(&a, &b(z)),
+                !mesh_intersections(&a, &b(z)).is_empty(),
+                "z = {z}"
+            );
+        }
     }
 }
