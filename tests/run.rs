@@ -688,7 +688,10 @@ fn the_guard_keeps_the_gap_repairs_locally_and_fails_what_it_cannot_repair() {
         .find(|s| s["name"] == "tumor")
         .unwrap();
     let error = tumor["error"].as_str().unwrap();
-    assert!(error.contains("`tumor` and `vein`"), "{error}");
+    assert!(
+        error.contains("`tumor` and `vein`") && error.contains("; closest at ("),
+        "{error}"
+    );
     assert!(!tmp.path().join("strict/g/tumor.ply").exists());
     assert!(tmp.path().join("strict/g/trachea.ply").exists());
 }

@@ -129,6 +129,17 @@ pub(super) fn guard_case(
         .map(|(p, why)| (p.a.clone(), p.b.clone(), why.clone()))
         .collect();
     for (a, b, why) in broken {
+        let place = match (
+            kept.iter().find(|k| k.name == a),
+            kept.iter().find(|k| k.name == b),
+        ) {
+            (Some(x), Some(y)) => {
+                let p = closest_place(&x.after, &y.after);
+                format!("; closest at ({:.2}, {:.2}, {:.2}) mm", p[0], p[1], p[2])
+            }
+            _ => String::new(),
+        };
+        let why = format!("{why}{place}");
         table.violations.push(why.clone());
         // The structures that moved carry the failure; their outputs are not written.
         for name in [&a, &b] {
@@ -150,4 +161,18 @@ pub(super) fn guard_case(
         }
     }
     table
+}
+
+/// Where `a` comes closest to `b` (world mm): a meeting triangle of `a` (its centroid) when
+/// they touch, else the vertex of `a` nearest to `b`.
+fn closest_place(a: &Mesh, b: &Mesh) -> [f32; 3] {
+    let p = a.positions();
+    if let Some(&[f, _]) = crate::spatial::intersect::mesh_intersections(a, b).first() {
+        let t = a.triangles()[f as usize];
+        return std::array::from_fn(|k| t.iter().map(|&v| p[v as usize][k]).sum::<f32>() / 3.0);
+    }
+    let d = TriangleGrid::build(b).distances(p);
+    (0..p.len())
+        .min_by(|&i, &j| d[i].total_cmp(&d[j]))
+        .map_or([f32::NAN; 3], |i| p[i])
 }
