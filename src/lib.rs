@@ -15,6 +15,7 @@ pub mod metrics;
 pub mod parallel;
 pub mod phantom;
 pub mod remesh;
+pub mod render;
 pub mod report;
 pub mod smooth;
 pub mod spatial;

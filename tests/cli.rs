@@ -315,7 +315,18 @@ fn inspect_context_and_context_aware_smoothing() {
         .iter()
         .map(|p| p.name.as_str())
         .collect();
-    assert_eq!(names, ["weight", "staircase", "cap", "staircase_distance"]);
+    assert_eq!(
+        names,
+        [
+            "weight",
+            "staircase",
+            "cap",
+            "staircase_distance",
+            "quality"
+        ]
+    );
+    // `quality` repeats the weight, for MeshLab.
+    assert_eq!(w.vertex_properties[4].values, w.vertex_properties[0].values);
     // Cap vertices have weight 0 (preserved).
     let (weight, cap) = (
         &w.vertex_properties[0].values,

@@ -17,7 +17,8 @@ pub struct Args {
     /// Also analyse context: stack axis, staircases, caps, distances, weights.
     #[arg(long)]
     context: bool,
-    /// Write the mesh with per-vertex `weight`, `staircase`, `cap` and distance properties (PLY).
+    /// Write the mesh with per-vertex `weight`, `staircase`, `cap` and distance arrays (.ply or
+    /// .vtp).
     #[arg(long)]
     export: Option<PathBuf>,
     /// World convention for a label map's coordinates.
@@ -114,6 +115,13 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
             ))
             .into());
         }
+        if !destair::io::OutputFormat::of_path(path).is_some_and(|f| f.holds_arrays()) {
+            return Err(super::UsageError(format!(
+                "{}: --export writes per-vertex arrays: name a .ply or .vtp file",
+                path.display()
+            ))
+            .into());
+        }
         let mut inputs = vec![mesh.as_path()];
         inputs.extend(ctx.references.iter().map(PathBuf::as_path));
         refuse_overwriting_inputs(path, &inputs, false)?;
@@ -196,39 +204,9 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         }
     }
     if let (Some(path), Some(a)) = (export, &analysis) {
-        let n = loaded.mesh.n_vertices();
-        let flag = |on: &dyn Fn(usize) -> bool| {
-            (0..n)
-                .map(|v| if on(v) { 1.0 } else { 0.0 })
-                .collect::<Vec<f32>>()
-        };
-        let staircase = flag(&|v| a.staircase.as_ref().is_some_and(|s| s.is_staircase[v]));
-        let caps = a.caps.cap_vertices(n);
-        let cap = flag(&|v| caps[v]);
-        // -1 where no staircase is within reach.
-        let stair_distance: Vec<f32> = (0..n)
-            .map(|v| {
-                a.staircase.as_ref().map_or(-1.0, |s| {
-                    if s.distance_mm[v].is_finite() {
-                        s.distance_mm[v]
-                    } else {
-                        -1.0
-                    }
-                })
-            })
-            .collect();
-        let mut props: Vec<(&str, &[f32])> = vec![
-            ("weight", a.weights.as_slice()),
-            ("staircase", &staircase),
-            ("cap", &cap),
-            ("staircase_distance", &stair_distance),
-        ];
-        let reference: Vec<f32>;
-        if let Some(d) = &a.reference_distance_mm {
-            reference = d.iter().map(|&x| x as f32).collect();
-            props.push(("reference_distance", &reference));
-        }
-        destair::io::ply::write_ply(&path, &loaded.mesh, &loaded.meta, &props)?;
+        let arrays = a.vertex_arrays(loaded.mesh.n_vertices());
+        let props: Vec<(&str, &[f32])> = arrays.iter().map(|(n, v)| (*n, v.as_slice())).collect();
+        destair::io::write_annotated(&path, &loaded.mesh, &loaded.meta, &props, "weight")?;
     }
     Ok(())
 }

@@ -415,7 +415,8 @@ pub fn run_cases(
             .collect();
         let mut summary = destair::job::summary::summarize(reports, Some(&ids));
         notes.apply(&mut summary);
-        if let Err(e) = destair::job::summary::write_summary(&plan.output_root, &summary) {
+        if let Err(e) = destair::job::summary::write_summary(&plan.output_root, &summary, plan.html)
+        {
             return Err(CasesFailed(format!(
                 "cannot write the cohort summary in {}: {e}",
                 plan.output_root.display()

@@ -154,20 +154,22 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
             UsageError("--max-displacement-voxels must be a positive number".into()).into(),
         );
     }
-    let format = match destair::io::extension(&output).as_deref() {
-        Some("ply") => destair::io::OutputFormat::Ply,
-        Some("stl") => destair::io::OutputFormat::Stl,
-        _ => {
-            return Err(UsageError(format!(
-                "{}: the output must end in .ply or .stl",
-                output.display()
-            ))
-            .into())
-        }
-    };
-    if annotate && format == destair::io::OutputFormat::Stl {
+    let format = destair::io::OutputFormat::of_path(&output).ok_or_else(|| {
+        UsageError(format!(
+            "{}: the output must end in .ply, .stl or .vtp",
+            output.display()
+        ))
+    })?;
+    if annotate && !format.holds_arrays() {
         return Err(UsageError(
-            "--annotate adds vertex properties, which STL cannot hold: write a .ply output".into(),
+            "--annotate adds vertex properties, which STL cannot hold: write a .ply or .vtp output"
+                .into(),
+        )
+        .into());
+    }
+    if profile.is_some() && format == destair::io::OutputFormat::Vtp {
+        return Err(UsageError(
+            "--profile cfd writes STEM.vtp (with CellEntityIds) itself: name the main output .ply or .stl".into(),
         )
         .into());
     }
@@ -312,19 +314,14 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         .into_iter()
         .map(|d| d as f32)
         .collect();
-    match format {
-        destair::io::OutputFormat::Ply => {
-            let props: Vec<(&str, &[f32])> = if annotate {
-                vec![("weight", weights.as_slice()), ("displacement", &lengths)]
-            } else {
-                Vec::new()
-            };
-            destair::io::ply::write_ply(&output, &smoothed, &loaded.meta, &props)?
-        }
-        destair::io::OutputFormat::Stl => {
-            destair::io::stl::write_stl(&output, &smoothed, &loaded.meta)?
-        }
-    }
+    // VTP always carries the arrays (it is the viewers' format); PLY with --annotate.
+    let arrays: Vec<(&str, &[f32])> =
+        if cfd.is_none() && (annotate || format == destair::io::OutputFormat::Vtp) {
+            vec![("weight", weights.as_slice()), ("displacement", &lengths)]
+        } else {
+            Vec::new()
+        };
+    destair::io::write_annotated(&output, &smoothed, &loaded.meta, &arrays, "displacement")?;
     println!(
         "{} {}: {} iterations{} in {:.3} s, last step {:.5} mm, {} vertices fixed -> {}",
         method.name(),

@@ -15,7 +15,7 @@ pub struct Args {
 
 pub fn exec(args: Args) -> anyhow::Result<()> {
     let mut out_dirs = args.out_dirs;
-    let (expected, notes) = match &args.config {
+    let (expected, notes, html) = match &args.config {
         Some(c) => {
             let plan = load_plan(c)?;
             if out_dirs.is_empty() {
@@ -24,7 +24,7 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
             let found = destair::job::discover(&plan);
             let notes = destair::job::summary::CohortNotes::of(&found);
             let ids: Vec<String> = found.cases.into_iter().map(|c| c.id).collect();
-            (Some(ids), notes)
+            (Some(ids), notes, plan.html)
         }
         None if out_dirs.is_empty() => {
             return Err(super::UsageError(
@@ -36,7 +36,7 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
             eprintln!(
                 "warning: without --config, summarize cannot know which cases are missing; it summarizes the reports it finds"
             );
-            (None, Default::default())
+            (None, Default::default(), true)
         }
     };
     // The summary is written into the first folder; no run may be writing there meanwhile.
@@ -64,7 +64,7 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     }
     let mut summary = destair::job::summary::summarize(reports, expected.as_deref());
     notes.apply(&mut summary);
-    destair::job::summary::write_summary(&out_dirs[0], &summary)?;
+    destair::job::summary::write_summary(&out_dirs[0], &summary, html)?;
     println!(
         "{} cases: {} ok, {} failed, {} missing, {} duplicated -> {}",
         summary.n_cases,

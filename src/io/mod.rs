@@ -244,6 +244,89 @@ impl std::ops::Deref for FileBytes {
 pub enum OutputFormat {
     Ply,
     Stl,
+    /// VTK XML PolyData with the per-vertex arrays (ParaView, 3D Slicer, VMTK, pyvista).
+    Vtp,
+}
+
+impl OutputFormat {
+    /// The format an output path's extension names (`.ply`, `.stl`, `.vtp`).
+    pub fn of_path(path: &Path) -> Option<OutputFormat> {
+        match extension(path).as_deref() {
+            Some("ply") => Some(OutputFormat::Ply),
+            Some("stl") => Some(OutputFormat::Stl),
+            Some("vtp") => Some(OutputFormat::Vtp),
+            _ => None,
+        }
+    }
+
+    /// The file extension, without the dot.
+    pub fn extension(self) -> &'static str {
+        match self {
+            OutputFormat::Ply => "ply",
+            OutputFormat::Stl => "stl",
+            OutputFormat::Vtp => "vtp",
+        }
+    }
+
+    /// Whether the format holds per-vertex arrays.
+    pub fn holds_arrays(self) -> bool {
+        !matches!(self, OutputFormat::Stl)
+    }
+}
+
+/// Encodes a mesh with per-vertex arrays. PLY gets them as float properties plus `quality`,
+/// a copy of the array named `main` (MeshLab shows only that one); VTP gets them as point data
+/// with `main` the active scalars; STL holds none and drops them.
+pub fn encode_annotated(
+    format: OutputFormat,
+    mesh: &Mesh,
+    meta: &MeshMeta,
+    arrays: &[(&str, &[f32])],
+    main: &str,
+) -> Result<Vec<u8>, WriteError> {
+    let main_first = || {
+        let mut sorted: Vec<(&str, &[f32])> = arrays.to_vec();
+        sorted.sort_by_key(|(n, _)| *n != main);
+        sorted
+    };
+    match format {
+        OutputFormat::Ply => {
+            let mut props = arrays.to_vec();
+            if let Some(&(_, v)) = arrays.iter().find(|(n, _)| *n == main) {
+                if !arrays.iter().any(|(n, _)| *n == "quality") {
+                    props.push(("quality", v));
+                }
+            }
+            ply::encode_ply(mesh, meta, &props)
+        }
+        OutputFormat::Stl => Ok(stl::encode_stl(mesh, meta)),
+        OutputFormat::Vtp => {
+            let point_data: Vec<vtp::VtpArray> = main_first()
+                .into_iter()
+                .map(|(n, v)| vtp::VtpArray::Float32(n, v))
+                .collect();
+            vtp::encode_vtp(mesh, meta, &point_data, &[])
+        }
+    }
+}
+
+/// [`encode_annotated`] into the file at `path` (format from its extension), atomically.
+pub fn write_annotated(
+    path: &Path,
+    mesh: &Mesh,
+    meta: &MeshMeta,
+    arrays: &[(&str, &[f32])],
+    main: &str,
+) -> Result<(), WriteError> {
+    let format = OutputFormat::of_path(path).ok_or_else(|| WriteError::Io {
+        path: path.to_path_buf(),
+        source: std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            "the output must end in .ply, .stl or .vtp",
+        ),
+    })?;
+    let bytes = encode_annotated(format, mesh, meta, arrays, main)?;
+    write_bytes_atomically(path, &bytes)
 }
 
 /// A mesh file that could not be written.

@@ -8,6 +8,7 @@ use super::guard::{guard_case, Kept};
 use super::label_map::{
     header_geometry, label_structures, load_label_map, LabelSource, LoadedLabelMap, Place,
 };
+use super::pictures::PictureInput;
 use super::plan::{Plan, StructureSettings};
 use crate::io::{decode_mesh, extension, with_file_bytes, LoadedMesh, OutputFormat, ReadOptions};
 use crate::mesh::{Mesh, Topology};
@@ -159,23 +160,26 @@ fn resume_key(
 }
 
 /// Encodes a mesh in each output format as `<stem>.<ext>`; returns (file name, bytes) pairs.
+/// VTP carries the per-vertex `arrays` always, PLY only with `[output] annotate`. `formats`
+/// is the plan's list, less any a caller writes itself.
 fn encode(
     plan: &Plan,
+    formats: &[OutputFormat],
     stem: &str,
     mesh: &Mesh,
     loaded: &LoadedMesh,
-    props: &[(&str, &[f32])],
+    arrays: &[(&str, &[f32])],
 ) -> Result<Vec<(String, Vec<u8>)>, String> {
-    plan.formats
+    formats
         .iter()
-        .map(|f| match f {
-            OutputFormat::Ply => crate::io::ply::encode_ply(mesh, &loaded.meta, props)
-                .map(|b| (format!("{stem}.ply"), b))
-                .map_err(|e| e.to_string()),
-            OutputFormat::Stl => Ok((
-                format!("{stem}.stl"),
-                crate::io::stl::encode_stl(mesh, &loaded.meta),
-            )),
+        .map(|&f| {
+            let arrays = match f {
+                OutputFormat::Ply if !plan.annotate => &[][..],
+                _ => arrays,
+            };
+            crate::io::encode_annotated(f, mesh, &loaded.meta, arrays, "displacement")
+                .map(|b| (format!("{stem}.{}", f.extension()), b))
+                .map_err(|e| e.to_string())
         })
         .collect()
 }
@@ -311,6 +315,14 @@ pub fn process_case(plan: &Plan, case: LoadedCase) -> CaseOutput {
         );
         table
     });
+    if plan.pictures {
+        let t0 = Instant::now();
+        super::pictures::draw_case_pictures(&kept, &mut structures, &mut files);
+        timings.insert(
+            "pictures".into(),
+            serde_json::json!(t0.elapsed().as_secs_f64()),
+        );
+    }
     drop(kept);
     let mut errors = case_errors;
     errors.extend(
@@ -379,6 +391,8 @@ fn run_structure(
         warnings: Vec::new(),
         source: f.source.clone(),
         cfd: None,
+        picture: None,
+        displacement_histogram: None,
     };
     let stem = plan.output_stem(case_id, &f.structure);
     let mut surface = None;
@@ -408,7 +422,12 @@ fn run_structure(
                 ));
                 Vec::new()
             } else {
-                if let Some((before, after)) = surface {
+                if let Some(Surfaces {
+                    before,
+                    after,
+                    picture,
+                }) = surface
+                {
                     kept.push(Kept {
                         input: index,
                         name: f.structure.clone(),
@@ -417,6 +436,7 @@ fn run_structure(
                             && after.n_vertices() == before.n_vertices(),
                         before,
                         after,
+                        picture,
                     });
                     kept.sort_by_key(|k| k.input);
                 }
@@ -431,6 +451,13 @@ fn run_structure(
         }
     };
     (report, outputs)
+}
+
+/// A processed structure's surfaces in world mm, for the guard and the pictures.
+struct Surfaces {
+    before: Mesh,
+    after: Mesh,
+    picture: Option<PictureInput>,
 }
 
 /// Where a structure's file came from, for messages.
@@ -458,7 +485,7 @@ fn process_structure(
     case: &BTreeMap<&str, &LoadedFile>,
     grids: &mut BTreeMap<(String, Option<usize>), TriangleGrid>,
     report: &mut StructureReport,
-    surfaces: &mut Option<(Mesh, Mesh)>,
+    surfaces: &mut Option<Surfaces>,
     held: Option<&[bool]>,
 ) -> Result<Vec<(String, Vec<u8>)>, String> {
     let loaded = file.mesh.as_ref().map_err(|e| e.clone())?;
@@ -500,8 +527,12 @@ fn process_structure(
                 .push("skip = true: copied unchanged, without the cfd profile".into());
         }
         let world = in_world(&place, mesh).into_owned();
-        let out = encode(plan, stem, &world, loaded, &[]);
-        *surfaces = Some((world.clone(), world));
+        let out = encode(plan, &plan.formats, stem, &world, loaded, &[]);
+        *surfaces = Some(Surfaces {
+            before: world.clone(),
+            after: world,
+            picture: None,
+        });
         return out;
     }
     let topology = Topology::build(mesh);
@@ -601,7 +632,7 @@ fn process_structure(
     // A constrained label surface is smooth and true to its voxels already: a mesh smoother
     // runs on it only when `method` is configured.
     let smoother = file.binary.is_none() || settings.method_configured;
-    let (positions, weights) = if smoother {
+    let (positions, context) = if smoother {
         let ctx = context_weights(mesh, &topology, &context_params, &refs);
         let mut fixed = if settings.move_boundary {
             vec![false; mesh.n_vertices()]
@@ -649,7 +680,7 @@ fn process_structure(
             settings.max_displacement_voxels,
             crate::smooth::displacement_unit(mesh, &topology, voxel),
         )?;
-        (positions, Some(ctx.weights))
+        (positions, Some(ctx))
     } else {
         (start.positions().to_vec(), None)
     };
@@ -687,7 +718,14 @@ fn process_structure(
                 "annotations are not written for the cfd profile's outputs (the surface is new); CellEntityIds are in the .vtp".into(),
             );
         }
-        let mut out = encode(plan, stem, &done.mesh, loaded, &[])?;
+        // The cfd profile's .vtp is the patch file, with CellEntityIds.
+        let formats: Vec<OutputFormat> = plan
+            .formats
+            .iter()
+            .copied()
+            .filter(|&f| f != OutputFormat::Vtp)
+            .collect();
+        let mut out = encode(plan, &formats, stem, &done.mesh, loaded, &[])?;
         out.extend(
             crate::cfd::encode_patch_files(stem, &done.mesh, &loaded.meta, &done.patches)
                 .map_err(|e| e.to_string())?,
@@ -701,20 +739,47 @@ fn process_structure(
             remeshed: done.remeshed,
         });
         report.status = "ok".into();
-        *surfaces = Some((in_world(&place, mesh).into_owned(), done.mesh));
+        let picture = PictureInput {
+            stem: stem.to_string(),
+            start: None,
+            arrays: context
+                .as_ref()
+                .map(|c| c.vertex_arrays(mesh.n_vertices()))
+                .unwrap_or_default(),
+        };
+        *surfaces = Some(Surfaces {
+            before: in_world(&place, mesh).into_owned(),
+            after: done.mesh,
+            picture: Some(picture),
+        });
         return Ok(out);
     }
-    // Annotations: the smoothing weights when a smoother ran, and the displacement.
-    let mut props: Vec<(&str, &[f32])> = Vec::new();
-    if plan.annotate {
-        if let Some(w) = &weights {
-            props.push(("weight", w.as_slice()));
-        }
-        props.push(("displacement", &displacement));
-    }
+    // Per-vertex arrays: the analysis behind the weights when a smoother ran, and the
+    // displacement.
+    let mut arrays = context
+        .as_ref()
+        .map(|c| c.vertex_arrays(mesh.n_vertices()))
+        .unwrap_or_default();
+    report.displacement_histogram = Some(crate::report::pictures::histogram(&displacement));
+    arrays.push(("displacement", displacement));
+    let named: Vec<(&str, &[f32])> = arrays.iter().map(|(n, v)| (*n, v.as_slice())).collect();
     let smoothed_world = in_world(&place, &smoothed).into_owned();
-    let out = encode(plan, stem, &smoothed_world, loaded, &props)?;
+    let out = encode(plan, &plan.formats, stem, &smoothed_world, loaded, &named)?;
     report.status = "ok".into();
-    *surfaces = Some((in_world(&place, mesh).into_owned(), smoothed_world));
+    // Pictures are drawn once the guard is done; a label surface's pictures start from its
+    // binary extraction, which the displacements are measured from.
+    let picture = PictureInput {
+        stem: stem.to_string(),
+        start: file
+            .binary
+            .as_ref()
+            .map(|b| in_world(&place, b).into_owned()),
+        arrays,
+    };
+    *surfaces = Some(Surfaces {
+        before: in_world(&place, mesh).into_owned(),
+        after: smoothed_world,
+        picture: Some(picture),
+    });
     Ok(out)
 }

@@ -62,18 +62,29 @@ fn default_extensions() -> Vec<String> {
 pub struct OutputConfig {
     /// Output folder, relative to the config file.
     pub root: PathBuf,
-    /// Mesh formats to write for every structure: "ply", "stl".
+    /// Mesh formats to write for every structure: "ply", "stl", "vtp".
     #[serde(default = "default_formats")]
     pub formats: Vec<String>,
-    /// Add `weight` and `displacement` vertex properties to PLY outputs.
+    /// Add the per-vertex arrays (`weight`, `displacement`, ...) to PLY outputs (VTP always
+    /// has them).
     #[serde(default)]
     pub annotate: bool,
+    /// A picture sheet per structure (PNG next to the report).
+    #[serde(default = "default_true")]
+    pub pictures: bool,
+    /// `report.html` per case and `index.html` for the cohort.
+    #[serde(default = "default_true")]
+    pub html: bool,
     /// Output mesh file name without extension; `{structure}` and `{case}` are replaced.
     #[serde(default = "default_naming")]
     pub naming: String,
     /// World convention of surfaces made from label maps: "lps" (3D Slicer's, the default) or
     /// "ras" (NIfTI's). Written into each mesh's header as `SPACE=...`.
     pub space: Option<String>,
+}
+
+fn default_true() -> bool {
+    true
 }
 
 fn default_naming() -> String {

@@ -26,6 +26,8 @@ pub(super) struct Kept {
     /// A smoother ran and the surface kept its vertices (not the cfd profile's new surface):
     /// a repair can hold vertices back and smooth again.
     pub repairable: bool,
+    /// What its pictures need besides the surfaces (none for structures copied unchanged).
+    pub picture: Option<super::pictures::PictureInput>,
 }
 
 /// The pair table of the kept structures; after a repair, only what involves the structures

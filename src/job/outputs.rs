@@ -10,7 +10,13 @@ use std::path::{Path, PathBuf};
 use thiserror::Error;
 
 /// Files every case folder holds besides its meshes; written by destair, removed by a prune.
-pub const CASE_FILES: [&str; 4] = ["report.json", "report.md", "timings.json", "manifest.json"];
+pub const CASE_FILES: [&str; 5] = [
+    "report.json",
+    "report.md",
+    "report.html",
+    "timings.json",
+    "manifest.json",
+];
 
 /// `manifest.json` of a case: written last, so its presence means every output is complete.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
@@ -107,6 +113,16 @@ pub fn write_case_output(
     let report = serde_json::to_vec_pretty(&out.report).map_err(|e| io(&dir)(e.into()))?;
     put("report.json", &report)?;
     put("report.md", out.report.to_markdown().as_bytes())?;
+    let html_path = dir.join("report.html");
+    if plan.html {
+        put(
+            "report.html",
+            crate::report::html::case::case_page(&out.report).as_bytes(),
+        )?;
+    } else if html_path.is_file() && !protected.contains(&html_path) {
+        // Turned off since the last run: a stale page would show old results.
+        std::fs::remove_file(&html_path).map_err(io(&html_path))?;
+    }
     let timings = serde_json::to_vec_pretty(&out.timings).map_err(|e| io(&dir)(e.into()))?;
     put("timings.json", &timings)?;
     let outputs: Vec<String> = out.files.iter().map(|(n, _)| n.clone()).collect();

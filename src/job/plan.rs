@@ -34,6 +34,10 @@ pub struct Plan {
     pub output_root: PathBuf,
     pub formats: Vec<OutputFormat>,
     pub annotate: bool,
+    /// A picture sheet per structure.
+    pub pictures: bool,
+    /// report.html per case, index.html per cohort.
+    pub html: bool,
     /// Output file stem template with `{structure}` and `{case}`.
     pub naming: String,
     pub workers: usize,
@@ -73,8 +77,9 @@ impl Plan {
             .map(|f| match f.as_str() {
                 "ply" => Ok(OutputFormat::Ply),
                 "stl" => Ok(OutputFormat::Stl),
+                "vtp" => Ok(OutputFormat::Vtp),
                 other => Err(invalid(format!(
-                    "[output] formats: unknown format {other:?} (ply, stl)"
+                    "[output] formats: unknown format {other:?} (ply, stl, vtp)"
                 ))),
             })
             .collect::<Result<Vec<_>, _>>()?;
@@ -83,7 +88,7 @@ impl Plan {
         }
         if config.output.annotate && !formats.contains(&OutputFormat::Ply) {
             return Err(invalid(
-                "[output] annotate adds vertex properties, which only PLY holds: add \"ply\" to formats"
+                "[output] annotate adds vertex properties to PLY outputs: add \"ply\" to formats (VTP outputs always have them)"
                     .into(),
             ));
         }
@@ -226,6 +231,8 @@ impl Plan {
             output_root: absolute(&config.output.root),
             formats,
             annotate: config.output.annotate,
+            pictures: config.output.pictures,
+            html: config.output.html,
             naming,
             workers,
             memory_budget_bytes: memory_budget_mb << 20,
@@ -337,6 +344,8 @@ impl Plan {
             "version": env!("CARGO_PKG_VERSION"),
             "formats": self.formats,
             "annotate": self.annotate,
+            "pictures": self.pictures,
+            "html": self.html,
             "naming": self.naming,
             "structures": settings,
             "space": self.space,
@@ -495,7 +504,10 @@ skip = false
         let err = plan("[input]\nroots = [\"c\"]\n[output]\nroot = \"o\"\nformats = [\"stl\"]\nannotate = true\n")
             .unwrap_err()
             .to_string();
-        assert!(err.contains("only PLY"), "{err}");
+        assert!(
+            err.contains("annotate adds vertex properties to PLY outputs"),
+            "{err}"
+        );
         let err = plan("[input]\nroots = [\"c\"]\n[output]\nroot = \"o\"\nformats = [\"vtk\"]\n")
             .unwrap_err()
             .to_string();

@@ -43,6 +43,12 @@ pub struct SummaryRow {
     /// Structures this one touches after smoothing and did not before.
     pub new_contacts: Option<u64>,
     pub error: String,
+    /// The structure's picture sheet (not in summary.csv).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub picture: Option<crate::report::pictures::PictureInfo>,
+    /// Folder of the case's report.json (for links; not written).
+    #[serde(skip)]
+    pub report_dir: PathBuf,
 }
 
 /// The summary of a set of cases.
@@ -129,6 +135,8 @@ pub fn rows_of(report: &Value) -> Vec<SummaryRow> {
             gap_change_mm: None,
             new_contacts: None,
             error,
+            picture: None,
+            report_dir: PathBuf::new(),
         }];
     }
     let pairs = report["guard"]["pairs"]
@@ -193,6 +201,8 @@ pub fn rows_of(report: &Value) -> Vec<SummaryRow> {
                         .count() as u64
                 }),
                 error: s["error"].as_str().unwrap_or("").to_string(),
+                picture: serde_json::from_value(s["picture"].clone()).ok(),
+                report_dir: PathBuf::new(),
             }
         })
         .collect()
@@ -216,10 +226,15 @@ pub fn read_case_rows(path: &Path) -> Result<CaseRows, String> {
     if !v["schema_version"].is_u64() {
         return Err(format!("{}: not a destair case report", path.display()));
     }
+    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let mut rows = rows_of(&v);
+    for r in &mut rows {
+        r.report_dir = dir.clone();
+    }
     Ok(CaseRows {
         id: v["case"].as_str().unwrap_or("").to_string(),
         ok: v["status"].as_str() == Some("ok"),
-        rows: rows_of(&v),
+        rows,
         path: path.to_path_buf(),
     })
 }
@@ -332,12 +347,17 @@ pub fn to_csv(rows: &[SummaryRow]) -> String {
     out
 }
 
-/// Writes `summary.csv` and `summary.json` into `dir`, atomically.
-pub fn write_summary(dir: &Path, summary: &Summary) -> std::io::Result<()> {
+/// Writes `summary.csv`, `summary.json` and (with `html`) `index.html` into `dir`, atomically.
+pub fn write_summary(dir: &Path, summary: &Summary, html: bool) -> std::io::Result<()> {
     std::fs::create_dir_all(dir)?;
     crate::io::remove_stale_temp_files(dir)?;
     let csv = to_csv(&summary.rows);
     write_atomically(&dir.join("summary.csv"), |w| w.write_all(csv.as_bytes()))?;
     let json = serde_json::to_vec_pretty(summary).map_err(std::io::Error::other)?;
-    write_atomically(&dir.join("summary.json"), |w| w.write_all(&json))
+    write_atomically(&dir.join("summary.json"), |w| w.write_all(&json))?;
+    if html {
+        let page = super::index_page::index_page(dir, summary);
+        write_atomically(&dir.join("index.html"), |w| w.write_all(page.as_bytes()))?;
+    }
+    Ok(())
 }

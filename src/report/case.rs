@@ -51,6 +51,12 @@ pub struct StructureReport {
     /// What the cfd profile made of the structure (absent without `profile = "cfd"`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cfd: Option<CfdReport>,
+    /// The structure's picture sheet (a file in the case folder), when pictures are on.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub picture: Option<crate::report::pictures::PictureInfo>,
+    /// How far vertices moved from the input to the output (mm).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub displacement_histogram: Option<crate::report::pictures::Histogram>,
 }
 
 /// The surface the cfd profile handed over: its size, patch table, checks and quality figures.

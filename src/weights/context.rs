@@ -77,6 +77,40 @@ pub struct Context {
     pub weights: VertexWeights,
 }
 
+impl Context {
+    /// Per-vertex arrays for viewers and pictures: `weight`, `staircase` and `cap` (1 on, 0
+    /// off), `staircase_distance` (mm, -1 where no staircase is within reach) and, with
+    /// references, `reference_distance` (mm).
+    pub fn vertex_arrays(&self, n_vertices: usize) -> Vec<(&'static str, Vec<f32>)> {
+        let flag = |on: bool| if on { 1.0 } else { 0.0 };
+        let staircase: Vec<f32> = (0..n_vertices)
+            .map(|v| flag(self.staircase.as_ref().is_some_and(|s| s.is_staircase[v])))
+            .collect();
+        let cap: Vec<f32> = self
+            .caps
+            .cap_vertices(n_vertices)
+            .into_iter()
+            .map(flag)
+            .collect();
+        let stair_distance: Vec<f32> = (0..n_vertices)
+            .map(|v| match &self.staircase {
+                Some(s) if s.distance_mm[v].is_finite() => s.distance_mm[v],
+                _ => -1.0,
+            })
+            .collect();
+        let mut out = vec![
+            ("weight", self.weights.as_slice().to_vec()),
+            ("staircase", staircase),
+            ("cap", cap),
+            ("staircase_distance", stair_distance),
+        ];
+        if let Some(d) = &self.reference_distance_mm {
+            out.push(("reference_distance", d.iter().map(|&x| x as f32).collect()));
+        }
+        out
+    }
+}
+
 /// Computes context-aware weights for a mesh; `references` are the structures whose distance
 /// must be preserved (empty for none).
 pub fn context_weights(
