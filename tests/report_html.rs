@@ -256,3 +256,31 @@ print(json.dumps({"points": m.GetNumberOfPoints(), "polys": m.GetNumberOfPolys()
         }
     }
 }
+
+#[test]
+fn pictures_and_pages_turned_off_are_not_written_and_old_ones_go() {
+    let t = tempfile::tempdir().unwrap();
+    let config = cohort(t.path(), 1, false);
+    let run = destair(&["run", config.to_str().unwrap()]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    let out = t.path().join("out");
+    let case = out.join("case-000");
+    assert!(case.join("tumor_views.png").is_file() && case.join("report.html").is_file());
+    assert!(out.join("index.html").is_file());
+    let text = std::fs::read_to_string(&config).unwrap().replace(
+        "root = \"out\"",
+        "root = \"out\"\npictures = false\nhtml = false",
+    );
+    std::fs::write(&config, text).unwrap();
+    let run = destair(&["run", config.to_str().unwrap()]);
+    assert!(run.status.success(), "{}", stderr(&run));
+    assert!(
+        !case.join("tumor_views.png").exists(),
+        "stale picture removed"
+    );
+    assert!(!case.join("report.html").exists(), "stale page removed");
+    assert!(!out.join("index.html").exists(), "stale index removed");
+    assert!(case.join("tumor.ply").is_file() && case.join("report.md").is_file());
+    let report = std::fs::read_to_string(case.join("report.json")).unwrap();
+    assert!(!report.contains("\"picture\""));
+}

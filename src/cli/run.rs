@@ -415,8 +415,10 @@ pub fn run_cases(
             .collect();
         let mut summary = destair::job::summary::summarize(reports, Some(&ids));
         notes.apply(&mut summary);
-        if let Err(e) = destair::job::summary::write_summary(&plan.output_root, &summary, plan.html)
-        {
+        let root = &plan.output_root;
+        let written = destair::job::summary::write_summary(root, &summary)
+            .and_then(|()| destair::job::index_page::write_index_page(root, &summary, plan.html));
+        if let Err(e) = written {
             return Err(CasesFailed(format!(
                 "cannot write the cohort summary in {}: {e}",
                 plan.output_root.display()

@@ -64,7 +64,8 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     }
     let mut summary = destair::job::summary::summarize(reports, expected.as_deref());
     notes.apply(&mut summary);
-    destair::job::summary::write_summary(&out_dirs[0], &summary, html)?;
+    destair::job::summary::write_summary(&out_dirs[0], &summary)?;
+    destair::job::index_page::write_index_page(&out_dirs[0], &summary, html)?;
     println!(
         "{} cases: {} ok, {} failed, {} missing, {} duplicated -> {}",
         summary.n_cases,

@@ -317,7 +317,11 @@ pub fn process_case(plan: &Plan, case: LoadedCase) -> CaseOutput {
     });
     if plan.pictures {
         let t0 = Instant::now();
-        super::pictures::draw_case_pictures(&kept, &mut structures, &mut files);
+        let jobs: Vec<super::pictures::PictureJob> = kept
+            .iter()
+            .filter_map(|k| Some((k.name.as_str(), &k.before, &k.after, k.picture.as_ref()?)))
+            .collect();
+        super::pictures::draw_case_pictures(&jobs, &mut structures, &mut files);
         timings.insert(
             "pictures".into(),
             serde_json::json!(t0.elapsed().as_secs_f64()),

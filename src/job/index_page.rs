@@ -127,6 +127,20 @@ fn num_cell(v: Option<f64>, digits: usize, flagged: bool) -> String {
     }
 }
 
+/// Writes `index.html` into `dir` (beside the summary), atomically; with `html` off, removes
+/// one an earlier run wrote (it would show old results).
+pub fn write_index_page(dir: &Path, summary: &Summary, html: bool) -> std::io::Result<()> {
+    let path = dir.join("index.html");
+    if !html {
+        return match std::fs::remove_file(&path) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(e),
+            _ => Ok(()),
+        };
+    }
+    let page = index_page(dir, summary);
+    crate::io::write_atomically(&path, |w| w.write_all(page.as_bytes()))
+}
+
 /// The page, written into `dir` (links to case folders are relative to it).
 pub fn index_page(dir: &Path, summary: &Summary) -> String {
     let rows = &summary.rows;

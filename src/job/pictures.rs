@@ -2,7 +2,6 @@
 //! all of the case's structures at once (in parallel; each picture's bytes do not depend on
 //! the threads).
 
-use super::guard::{Files, Kept};
 use crate::mesh::Mesh;
 use crate::report::case::StructureReport;
 use crate::report::pictures::{structure_picture, StructureViews};
@@ -19,36 +18,36 @@ pub(super) struct PictureInput {
     pub arrays: Vec<(&'static str, Vec<f32>)>,
 }
 
-/// Draws the picture sheet of every kept structure that is ok, adds the PNG files to `files`
-/// and the picture to each structure's report and outputs.
+/// A processed structure to draw: its name, its surfaces before and after (world mm) and
+/// what else its pictures need.
+pub(super) type PictureJob<'a> = (&'a str, &'a Mesh, &'a Mesh, &'a PictureInput);
+
+/// Draws the picture sheet of every structure given that is ok, adds the PNG files to
+/// `files` and the picture to each structure's report and outputs.
 pub(super) fn draw_case_pictures(
-    kept: &[Kept],
+    jobs: &[PictureJob],
     structures: &mut [StructureReport],
-    files: &mut Files,
+    files: &mut Vec<(String, Vec<u8>)>,
 ) {
     let ok = |name: &str| {
         structures
             .iter()
             .any(|s| s.name == name && s.status == "ok")
     };
-    let jobs: Vec<(&Kept, &PictureInput)> = kept
-        .iter()
-        .filter_map(|k| k.picture.as_ref().map(|p| (k, p)))
-        .filter(|(k, _)| ok(&k.name))
-        .collect();
+    let jobs: Vec<&PictureJob> = jobs.iter().filter(|(name, ..)| ok(name)).collect();
     let drawn: Vec<_> = jobs
         .par_iter()
-        .map(|(k, p)| {
+        .map(|(name, before, after, p)| {
             let arrays: Vec<(&str, &[f32])> =
                 p.arrays.iter().map(|(n, v)| (*n, v.as_slice())).collect();
             let views = StructureViews {
-                heading: k.name.clone(),
-                before: p.start.as_ref().unwrap_or(&k.before),
-                after: &k.after,
+                heading: name.to_string(),
+                before: p.start.as_ref().unwrap_or(before),
+                after,
                 arrays: &arrays,
             };
             let (info, png) = structure_picture(&views, format!("{}_views.png", p.stem));
-            (k.name.clone(), info, png)
+            (name.to_string(), info, png)
         })
         .collect();
     for (name, info, png) in drawn {

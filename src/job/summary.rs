@@ -347,17 +347,12 @@ pub fn to_csv(rows: &[SummaryRow]) -> String {
     out
 }
 
-/// Writes `summary.csv`, `summary.json` and (with `html`) `index.html` into `dir`, atomically.
-pub fn write_summary(dir: &Path, summary: &Summary, html: bool) -> std::io::Result<()> {
+/// Writes `summary.csv` and `summary.json` into `dir`, atomically.
+pub fn write_summary(dir: &Path, summary: &Summary) -> std::io::Result<()> {
     std::fs::create_dir_all(dir)?;
     crate::io::remove_stale_temp_files(dir)?;
     let csv = to_csv(&summary.rows);
     write_atomically(&dir.join("summary.csv"), |w| w.write_all(csv.as_bytes()))?;
     let json = serde_json::to_vec_pretty(summary).map_err(std::io::Error::other)?;
-    write_atomically(&dir.join("summary.json"), |w| w.write_all(&json))?;
-    if html {
-        let page = super::index_page::index_page(dir, summary);
-        write_atomically(&dir.join("index.html"), |w| w.write_all(page.as_bytes()))?;
-    }
-    Ok(())
+    write_atomically(&dir.join("summary.json"), |w| w.write_all(&json))
 }
