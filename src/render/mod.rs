@@ -8,6 +8,9 @@ pub mod colour;
 pub mod sheet;
 pub mod text;
 
+use crate::mesh::geometry::{
+    cross as cross32, cross64 as cross, dot as dot32, dot64 as dot, sub as sub32,
+};
 use crate::mesh::Mesh;
 
 /// Supersampling factor per axis: each output pixel averages `SUPERSAMPLE^2` samples.
@@ -380,37 +383,9 @@ fn edge(a: [f32; 3], b: [f32; 3], p: [f32; 3]) -> f32 {
     (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0])
 }
 
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
 fn normalise(a: [f64; 3]) -> Option<[f64; 3]> {
     let l = dot(a, a).sqrt();
     (l > 0.0 && l.is_finite()).then(|| a.map(|x| x / l))
-}
-
-fn sub32(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn dot32(a: [f32; 3], b: [f32; 3]) -> f32 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn cross32(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
 }
 
 #[cfg(test)]
