@@ -46,6 +46,7 @@ fn the_displacement_panel_shows_the_known_field_at_known_places() {
         before: &before,
         after: &after,
         arrays: &arrays,
+        patches: None,
     };
     let (sheet, titles) = structure_sheet(&views);
     assert_eq!(titles, ["input", "smoothed", "displacement"]);
@@ -122,6 +123,7 @@ fn pictures_are_the_same_bytes_for_any_thread_count() {
         before: &before,
         after: &after,
         arrays: &arrays,
+        patches: None,
     };
     let render = |threads: usize| {
         rayon::ThreadPoolBuilder::new()

@@ -378,6 +378,13 @@ close_open_ends = true
     ] {
         let r = report(case);
         assert_eq!(r["status"], "ok", "{r}");
+        // The picture sheet shows the patches of the surface handed over.
+        let panels = &r["structures"][0]["picture"]["panels"];
+        assert!(
+            panels.as_array().unwrap().iter().any(|p| p == "patches"),
+            "{panels}"
+        );
+        assert!(out.join(case).join(format!("{name}_views.png")).is_file());
         let s = &r["structures"][0];
         let cfd = &s["cfd"];
         let patches = cfd["patches"]["patches"].as_array().unwrap();

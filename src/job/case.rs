@@ -750,6 +750,10 @@ fn process_structure(
                 .as_ref()
                 .map(|c| c.vertex_arrays(mesh.n_vertices()))
                 .unwrap_or_default(),
+            patches: report.cfd.as_ref().map(|c| {
+                let names = c.patches.patches.iter().map(|p| (p.id, p.name.clone()));
+                (c.patches.face_ids.clone(), names.collect())
+            }),
         };
         *surfaces = Some(Surfaces {
             before: in_world(&place, mesh).into_owned(),
@@ -779,6 +783,7 @@ fn process_structure(
             .as_ref()
             .map(|b| in_world(&place, b).into_owned()),
         arrays,
+        patches: None,
     };
     *surfaces = Some(Surfaces {
         before: in_world(&place, mesh).into_owned(),

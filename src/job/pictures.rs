@@ -16,7 +16,13 @@ pub(super) struct PictureInput {
     pub start: Option<Mesh>,
     /// Per-vertex arrays (weight, staircase, cap, displacement, ...).
     pub arrays: Vec<(&'static str, Vec<f32>)>,
+    /// cfd profile: the patch id of each face of the surface handed over, and the patches'
+    /// names by id.
+    pub patches: Option<PatchFaces>,
 }
+
+/// Per face its patch id, and the patches' (id, name).
+pub(super) type PatchFaces = (Vec<u32>, Vec<(u32, String)>);
 
 /// A processed structure to draw: its name, its surfaces before and after (world mm) and
 /// what else its pictures need.
@@ -45,6 +51,10 @@ pub(super) fn draw_case_pictures(
                 before: p.start.as_ref().unwrap_or(before),
                 after,
                 arrays: &arrays,
+                patches: p
+                    .patches
+                    .as_ref()
+                    .map(|(ids, names)| (ids.as_slice(), names.as_slice())),
             };
             let (info, png) = structure_picture(&views, format!("{}_views.png", p.stem));
             (name.to_string(), info, png)

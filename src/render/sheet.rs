@@ -145,11 +145,16 @@ fn draw_legend(sheet: &mut Picture, legend: &Legend, x: u32, y: u32, width: u32)
             draw_text(sheet, (x + 8 + bar).saturating_sub(w), y + 16, &hi, 1, INK);
         }
         Legend::Classes(classes) => {
-            let mut cx = x + 8;
+            // Left to right, on a second line when the first is full.
+            let (mut cx, mut cy) = (x + 8, y + 2);
             for (name, colour) in classes {
-                sheet.fill_rect(cx, y + 2, 10, 10, *colour);
-                draw_text(sheet, cx + 14, y + 4, name, 1, INK);
-                cx += 14 + text_width(name, 1) + 12;
+                let w = 14 + text_width(name, 1);
+                if cx + w > x + width && cx > x + 8 {
+                    (cx, cy) = (x + 8, cy + 16);
+                }
+                sheet.fill_rect(cx, cy, 10, 10, *colour);
+                draw_text(sheet, cx + 14, cy + 2, name, 1, INK);
+                cx += w + 12;
             }
         }
     }

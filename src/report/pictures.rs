@@ -23,13 +23,31 @@ pub struct StructureViews<'a> {
     pub after: &'a Mesh,
     /// Per-vertex arrays by name: `displacement` (mm), `weight`, `staircase` and `cap` (1/0).
     pub arrays: &'a [(&'a str, &'a [f32])],
+    /// cfd profile: per face of `after` its patch id (`CellEntityIds`) and the patches' names
+    /// by id (the wall is id 1).
+    pub patches: Option<PatchLabels<'a>>,
 }
+
+/// Per face its patch id, and the patches' (id, name).
+pub type PatchLabels<'a> = (&'a [u32], &'a [(u32, String)]);
+
+/// Colours of cfd patches: the wall grey, then inlet and outlets in turn.
+const PATCH_COLOURS: [[u8; 3]; 7] = [
+    [220, 50, 47],
+    [38, 139, 210],
+    [133, 153, 0],
+    [211, 54, 130],
+    [42, 161, 152],
+    [181, 137, 0],
+    [108, 113, 196],
+];
 
 /// What one panel draws.
 enum PanelKind<'a> {
     Plain(&'a Mesh),
     Scaled(&'a Mesh, &'a [f32], Scale),
     Classes(&'a Mesh, Vec<[u8; 3]>),
+    Faces(&'a Mesh, Vec<[u8; 3]>),
 }
 
 /// A structure's picture sheet as the report records it: where each panel is, for pages
@@ -81,7 +99,12 @@ pub fn structure_sheet(views: &StructureViews) -> (Picture, Vec<String>) {
     let mut specs: Vec<(String, PanelKind, Legend)> = vec![
         ("input".into(), PanelKind::Plain(views.before), Legend::None),
         (
-            "smoothed".into(),
+            if views.patches.is_some() {
+                "handed over (cfd)"
+            } else {
+                "smoothed"
+            }
+            .into(),
             PanelKind::Plain(views.after),
             Legend::None,
         ),
@@ -126,6 +149,21 @@ pub fn structure_sheet(views: &StructureViews) -> (Picture, Vec<String>) {
             ]),
         ));
     }
+    if let Some((ids, names)) = views.patches {
+        if ids.len() == views.after.n_triangles() {
+            let colour = |id: u32| match names.iter().position(|(i, _)| *i == id) {
+                Some(k) => PATCH_COLOURS[k % PATCH_COLOURS.len()],
+                None => colour::CLASS_OTHER,
+            };
+            let mut classes = vec![("wall".to_string(), colour::CLASS_OTHER)];
+            classes.extend(names.iter().map(|(id, n)| (n.clone(), colour(*id))));
+            specs.push((
+                "patches".into(),
+                PanelKind::Faces(views.after, ids.iter().map(|&id| colour(id)).collect()),
+                Legend::Classes(classes),
+            ));
+        }
+    }
     let camera = Camera::fitted(&[views.before, views.after], FRONT_OBLIQUE, PANEL_PX);
     // Each surface is rasterised once; its panels only shade.
     let (before, after) = rayon::join(
@@ -148,6 +186,7 @@ pub fn structure_sheet(views: &StructureViews) -> (Picture, Vec<String>) {
                     coverage(m).shade(m, Paint::PerVertex(&scale.colours(values)))
                 }
                 PanelKind::Classes(m, colours) => coverage(m).shade(m, Paint::PerVertex(colours)),
+                PanelKind::Faces(m, colours) => coverage(m).shade(m, Paint::PerFace(colours)),
             };
             Panel {
                 title,
