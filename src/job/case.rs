@@ -743,7 +743,7 @@ fn process_structure(
             remeshed: done.remeshed,
         });
         report.status = "ok".into();
-        let picture = PictureInput {
+        let picture = plan.pictures.then(|| PictureInput {
             stem: stem.to_string(),
             start: None,
             arrays: context
@@ -754,20 +754,21 @@ fn process_structure(
                 let names = c.patches.patches.iter().map(|p| (p.id, p.name.clone()));
                 (c.patches.face_ids.clone(), names.collect())
             }),
-        };
+        });
         *surfaces = Some(Surfaces {
             before: in_world(&place, mesh).into_owned(),
             after: done.mesh,
-            picture: Some(picture),
+            picture,
         });
         return Ok(out);
     }
-    // Per-vertex arrays: the analysis behind the weights when a smoother ran, and the
-    // displacement.
-    let mut arrays = context
-        .as_ref()
-        .map(|c| c.vertex_arrays(mesh.n_vertices()))
-        .unwrap_or_default();
+    // Per-vertex arrays, for VTP, annotated PLY and pictures only: the analysis behind the
+    // weights when a smoother ran, and the displacement.
+    let wanted = plan.annotate || plan.pictures || plan.formats.contains(&OutputFormat::Vtp);
+    let mut arrays = match &context {
+        Some(c) if wanted => c.vertex_arrays(mesh.n_vertices()),
+        _ => Vec::new(),
+    };
     report.displacement_histogram = Some(crate::report::pictures::histogram(&displacement));
     arrays.push(("displacement", displacement));
     let named: Vec<(&str, &[f32])> = arrays.iter().map(|(n, v)| (*n, v.as_slice())).collect();
@@ -776,7 +777,7 @@ fn process_structure(
     report.status = "ok".into();
     // Pictures are drawn once the guard is done; a label surface's pictures start from its
     // binary extraction, which the displacements are measured from.
-    let picture = PictureInput {
+    let picture = plan.pictures.then(|| PictureInput {
         stem: stem.to_string(),
         start: file
             .binary
@@ -784,11 +785,11 @@ fn process_structure(
             .map(|b| in_world(&place, b).into_owned()),
         arrays,
         patches: None,
-    };
+    });
     *surfaces = Some(Surfaces {
         before: in_world(&place, mesh).into_owned(),
         after: smoothed_world,
-        picture: Some(picture),
+        picture,
     });
     Ok(out)
 }

@@ -112,12 +112,13 @@ pub fn write_case_output(
     }
     let report = serde_json::to_vec_pretty(&out.report).map_err(|e| io(&dir)(e.into()))?;
     put("report.json", &report)?;
-    put("report.md", out.report.to_markdown().as_bytes())?;
+    let markdown = out.report.to_markdown();
+    put("report.md", markdown.as_bytes())?;
     let html_path = dir.join("report.html");
     if plan.html {
         put(
             "report.html",
-            crate::report::html::case::case_page(&out.report).as_bytes(),
+            crate::report::html::case::case_page(&out.report, &markdown).as_bytes(),
         )?;
     } else if html_path.is_file() && !protected.contains(&html_path) {
         // Turned off since the last run: a stale page would show old results.

@@ -6,9 +6,9 @@ use super::svg;
 use super::{escape, href, page};
 use crate::report::case::CaseReport;
 
-/// The case page.
-pub fn case_page(report: &CaseReport) -> String {
-    let mut body = markdown_to_html(&report.to_markdown());
+/// The case page; `markdown` is the report's `to_markdown()` (made once for report.md).
+pub fn case_page(report: &CaseReport, markdown: &str) -> String {
+    let mut body = markdown_to_html(markdown);
     for st in &report.structures {
         let refs: Vec<(String, f64, f64)> = st
             .metrics

@@ -64,12 +64,11 @@ fn short(v: f64) -> String {
     } else {
         format!("{v:.4}")
     };
-    let s = if s.contains('.') {
+    if s.contains('.') {
         s.trim_end_matches('0').trim_end_matches('.').to_string()
     } else {
         s
-    };
-    s
+    }
 }
 
 /// A histogram with bin edges in mm on x and counts on y.
