@@ -368,6 +368,8 @@ pub struct LabelMapBench {
     pub read_nii_s: f64,
     /// Best time to extract every label's surface, consistently (s).
     pub extract_s: f64,
+    /// Median of the same runs (s): this VM's timings move 20-30 % from run to run.
+    pub extract_median_s: f64,
     /// Of which: all interfaces in one scan of the volume (best time, s).
     pub interfaces_s: f64,
     /// Of which: one closed surface per label from the interfaces (best time, s).
@@ -404,6 +406,7 @@ pub fn labelmap(dir: &Path, repeat: usize, keep: bool) -> std::io::Result<LabelM
         read_nii_gz_s: 0.0,
         read_nii_s: 0.0,
         extract_s: 0.0,
+        extract_median_s: 0.0,
         interfaces_s: 0.0,
         assemble_s: 0.0,
         n_interface_triangles: 0,
@@ -414,12 +417,17 @@ pub fn labelmap(dir: &Path, repeat: usize, keep: bool) -> std::io::Result<LabelM
     drop(all);
     // Until every surface exists: the outputs are dropped outside the timing, as the last
     // run's are by `best_of`.
+    let mut times = Vec::with_capacity(repeat.max(1));
     let (s, (all, _surfaces)) = best_of(repeat, || {
+        let t = Instant::now();
         let all = crate::extract::interfaces(&volume);
         let surfaces = crate::extract::label_surfaces(&volume, &all);
+        times.push(t.elapsed().as_secs_f64());
         (all, surfaces)
     });
     out.extract_s = s;
+    times.sort_by(f64::total_cmp);
+    out.extract_median_s = times[times.len() / 2];
     out.n_interface_triangles = all.triangles.len();
     drop((all, _surfaces));
     for gz in [true, false] {
