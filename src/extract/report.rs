@@ -3,7 +3,7 @@
 //! whether the surface is a closed oriented 2-manifold, and how it was extracted.
 
 use crate::extract::constrained::{LabelCounts, LabelSmoothing, Noise, Surface, Thin};
-use crate::mesh::{geometry::signed_volume, Topology};
+use crate::mesh::{geometry::signed_volume, manifold::is_closed_oriented_manifold};
 use crate::volume::{Grid, Label, LabelVolume};
 use serde::Serialize;
 
@@ -82,7 +82,6 @@ pub fn extracted_label(
     grid: &Grid,
     extraction: Extraction,
 ) -> ExtractedLabel {
-    let topology = Topology::build(mesh);
     ExtractedLabel {
         layer,
         value: label.value,
@@ -93,7 +92,7 @@ pub fn extracted_label(
         mesh_volume_mm3: signed_volume(mesh),
         n_vertices: mesh.n_vertices(),
         n_triangles: mesh.n_triangles(),
-        closed_oriented_manifold: topology.is_closed_oriented_manifold(),
+        closed_oriented_manifold: is_closed_oriented_manifold(mesh),
         extraction,
     }
 }

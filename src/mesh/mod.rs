@@ -5,6 +5,7 @@
 //! ([`Topology::build`]), because many callers (writers, converters) never need it.
 
 pub mod geometry;
+pub mod manifold;
 pub mod order;
 pub mod topology;
 
