@@ -3,10 +3,9 @@
 
 use super::Mesh;
 
-/// The same answer as [`Topology::build`](super::Topology::build)`(mesh)
-/// .is_closed_oriented_manifold()` (degenerate triangles are left out by both; unreferenced
-/// vertices are allowed), at a fraction of the cost: one vertex-to-face pass and a walk around
-/// each vertex. Each face at vertex v, rotated to (v, x, y), maps x to y; the mesh is a closed
+/// The same answer as `Topology::build(mesh).is_closed_oriented_manifold()` (degenerate
+/// triangles are left out by both; unreferenced vertices are allowed), at a fraction of the
+/// cost: one vertex-to-face pass and a walk around each vertex. Each face at vertex v, rotated to (v, x, y), maps x to y; the mesh is a closed
 /// oriented 2-manifold exactly when, at every vertex, the x are distinct and following x -> y
 /// visits all of them in one cycle (then every edge at v has one face on each side, both
 /// orienting it oppositely, and the faces form a single fan).
