@@ -5,10 +5,11 @@ use super::Mesh;
 
 /// The same answer as `Topology::build(mesh).is_closed_oriented_manifold()` (degenerate
 /// triangles are left out by both; unreferenced vertices are allowed), at a fraction of the
-/// cost: one vertex-to-face pass and a walk around each vertex. Each face at vertex v, rotated to (v, x, y), maps x to y; the mesh is a closed
-/// oriented 2-manifold exactly when, at every vertex, the x are distinct and following x -> y
-/// visits all of them in one cycle (then every edge at v has one face on each side, both
-/// orienting it oppositely, and the faces form a single fan).
+/// cost: one vertex-to-face pass and a walk around each vertex. Each face at vertex v, rotated
+/// to (v, x, y), maps x to y; the mesh is a closed oriented 2-manifold exactly when, at every
+/// vertex, the x are distinct and following x -> y visits all of them in one cycle (then every
+/// edge at v has one face on each side, both orienting it oppositely, and the faces form a
+/// single fan).
 pub fn is_closed_oriented_manifold(mesh: &Mesh) -> bool {
     let n = mesh.n_vertices();
     let valid = |t: &&[u32; 3]| t[0] != t[1] && t[1] != t[2] && t[0] != t[2];
@@ -18,9 +19,7 @@ pub fn is_closed_oriented_manifold(mesh: &Mesh) -> bool {
             start[v as usize + 1] += 1;
         }
     }
-    for v in 1..=n {
-        start[v] += start[v - 1];
-    }
+    super::topology::prefix_sum(&mut start);
     // (x, y) of each face at each vertex.
     let mut fan = vec![[0u32; 2]; start[n] as usize];
     let mut cursor = start.clone();

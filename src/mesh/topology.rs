@@ -216,7 +216,7 @@ impl Topology {
 }
 
 /// Exclusive-to-inclusive prefix sum over a counts array whose entry 0 is 0.
-fn prefix_sum(offsets: &mut [u32]) {
+pub(super) fn prefix_sum(offsets: &mut [u32]) {
     for i in 1..offsets.len() {
         offsets[i] += offsets[i - 1];
     }
