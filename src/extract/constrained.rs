@@ -256,8 +256,8 @@ pub fn place_on_weights(
             .then(|| v[0] as u64 + nx * (v[1] as u64 + ny * v[2] as u64))
     };
     // The edge of an edge vertex between two smoothed labels: (axis, lo, hi, a, b).
-    let edge = |p: &[f64; 3]| {
-        let (axis, lo) = edge_of(p)?;
+    let edge = |p: &[f32; 3]| {
+        let (axis, lo) = edge_of(&p.map(f64::from))?;
         let mut hi = lo;
         hi[axis] += 1;
         let (a, b) = (label_at(volume, lo), label_at(volume, hi));
@@ -386,7 +386,7 @@ pub fn place_on_weights(
             let denominator = d_lo - d_hi;
             if denominator > 0.0 && d_lo >= 0.0 {
                 let t = (d_lo / denominator).clamp(0.0, 1.0) as f64;
-                p[axis] = lo[axis] as f64 + t;
+                p[axis] = (lo[axis] as f64 + t) as f32;
             }
         });
     drop(samples);
@@ -434,7 +434,7 @@ pub fn place_on_weights(
             .par_iter()
             .filter(|(v, _)| all.kinds[*v] == kind)
             .filter_map(|&(v, neighbours)| {
-                let own = all.positions[v];
+                let own = all.positions[v].map(f64::from);
                 // A face point's face: the axis along which it sits on a whole number.
                 let normal = (0..3).find(|&a| own[a].fract() == 0.0);
                 let mut count = 0;
@@ -443,7 +443,7 @@ pub fn place_on_weights(
                     if neighbours[..i].contains(&n) {
                         continue;
                     }
-                    let q = all.positions[n as usize];
+                    let q = all.positions[n as usize].map(f64::from);
                     let on_face = match (kind, normal) {
                         (VERTEX_FACE, Some(a)) => {
                             all.kinds[n as usize] == VERTEX_EDGE && q[a] == own[a]
@@ -462,7 +462,7 @@ pub fn place_on_weights(
             })
             .collect();
         for (v, p) in updates {
-            all.positions[v] = p;
+            all.positions[v] = p.map(|x| x as f32);
         }
     }
     (0..n_labels)

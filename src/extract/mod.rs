@@ -39,8 +39,9 @@ pub struct LabelSurface {
 /// two sides (`inner` is the side its normal points away from; 0 is background).
 #[derive(Debug, Clone, Default)]
 pub struct Interfaces {
-    /// Vertex positions in voxel index coordinates (the volume's grid maps them to mm).
-    pub positions: Vec<[f64; 3]>,
+    /// Vertex positions in voxel index coordinates (the volume's grid maps them to mm). f32
+    /// keeps 1/30,000 of a voxel at index 512, and halves the memory the scan writes.
+    pub positions: Vec<[f32; 3]>,
     pub triangles: Vec<[u32; 3]>,
     /// (inner, outer) label per triangle.
     pub sides: Vec<[u16; 2]>,
@@ -66,7 +67,7 @@ const SLAB: i64 = 4;
 /// What one slab of cells produced: its vertices (first-seen order) and triangles over them,
 /// and the vertices on its bottom and top planes, which it shares with the slabs next to it.
 struct SlabOutput {
-    positions: Vec<[f64; 3]>,
+    positions: Vec<[f32; 3]>,
     kinds: Vec<u8>,
     triangles: Vec<[u32; 3]>,
     outer_apex: Vec<u32>,
@@ -101,37 +102,77 @@ pub fn interfaces(volume: &LabelVolume) -> Interfaces {
         })
         .collect();
     // Vertex numbers: a slab's vertices in its own order, except those on its bottom plane,
-    // which are the previous slab's top-plane vertices (the same grid elements).
-    let mut maps: Vec<Vec<u32>> = Vec::with_capacity(slabs.len());
-    let mut first_new: Vec<u32> = Vec::with_capacity(slabs.len());
-    let mut next = 0u32;
-    for (s, slab) in slabs.iter().enumerate() {
-        first_new.push(next);
-        let mut map = vec![u32::MAX; slab.positions.len()];
-        if s > 0 {
-            let (prev, prev_map) = (&slabs[s - 1], &maps[s - 1]);
-            for &(local, key) in &slab.bottom {
-                if let Ok(at) = prev.top.binary_search_by_key(&key, |&(k, _)| k) {
-                    map[local as usize] = prev_map[prev.top[at].1 as usize];
+    // which are the previous slab's top-plane vertices (the same grid elements). Per slab in
+    // parallel: which local vertices are the previous slab's (by their local number there),
+    // then the new ones numbered from the slab's first, then the shared ones looked up (a
+    // top-plane vertex is always new in its own slab).
+    let links: Vec<Vec<(u32, u32)>> = slabs
+        .par_iter()
+        .enumerate()
+        .map(|(s, slab)| {
+            let Some(prev) = s.checked_sub(1).map(|p| &slabs[p]) else {
+                return Vec::new();
+            };
+            slab.bottom
+                .iter()
+                .filter_map(|&(local, key)| {
+                    let at = prev.top.binary_search_by_key(&key, |&(k, _)| k).ok()?;
+                    Some((local, prev.top[at].1))
+                })
+                .collect()
+        })
+        .collect();
+    let new_counts: Vec<usize> = slabs
+        .iter()
+        .zip(&links)
+        .map(|(slab, links)| slab.positions.len() - links.len())
+        .collect();
+    let first_new: Vec<u32> = new_counts
+        .iter()
+        .scan(0u32, |next, &n| {
+            let first = *next;
+            *next += n as u32;
+            Some(first)
+        })
+        .collect();
+    let mut maps: Vec<Vec<u32>> = slabs
+        .par_iter()
+        .zip(&links)
+        .zip(&first_new)
+        .map(|((slab, links), &first)| {
+            let mut map = vec![0u32; slab.positions.len()];
+            for &(local, _) in links {
+                map[local as usize] = u32::MAX;
+            }
+            let mut next = first;
+            for m in &mut map {
+                if *m != u32::MAX {
+                    *m = next;
+                    next += 1;
                 }
             }
-        }
-        for m in &mut map {
-            if *m == u32::MAX {
-                *m = next;
-                next += 1;
-            }
-        }
-        maps.push(map);
-    }
-    // Concatenated in parallel: every slab writes its own stretch of the outputs.
-    let new_counts: Vec<usize> = maps
-        .iter()
-        .zip(&first_new)
-        .map(|(map, &first)| map.iter().filter(|&&g| g >= first).count())
+            map
+        })
         .collect();
+    let shared: Vec<Vec<(u32, u32)>> = links
+        .par_iter()
+        .enumerate()
+        .map(|(s, links)| {
+            let prev = maps.get(s.wrapping_sub(1));
+            links
+                .iter()
+                .filter_map(|&(local, there)| Some((local, *prev?.get(there as usize)?)))
+                .collect()
+        })
+        .collect();
+    maps.par_iter_mut().zip(shared).for_each(|(map, shared)| {
+        for (local, global) in shared {
+            map[local as usize] = global;
+        }
+    });
+    // Concatenated in parallel: every slab writes its own stretch of the outputs.
     let tri_counts: Vec<usize> = slabs.iter().map(|s| s.triangles.len()).collect();
-    let positions = concat(&new_counts, |s, out: &mut [[f64; 3]]| {
+    let positions = concat(&new_counts, |s, out: &mut [[f32; 3]]| {
         let first = first_new[s];
         let new = slabs[s]
             .positions
@@ -380,7 +421,7 @@ fn slab(volume: &LabelVolume, ks: std::ops::Range<i64>, scratch: &mut SlabScratc
                     if local & 3 == KIND_APEX {
                         // A cell's own branching point: no other cell has it.
                         ids.push(out.positions.len() as u32);
-                        out.positions.push(at);
+                        out.positions.push(at.map(|x| x as f32));
                         out.kinds.push(VERTEX_APEX);
                         continue;
                     }
@@ -398,7 +439,7 @@ fn slab(volume: &LabelVolume, ks: std::ops::Range<i64>, scratch: &mut SlabScratc
                     };
                     if id == next {
                         let global = (((gid(c) * 3) + axis) << 2) | (local & 3);
-                        out.positions.push(at);
+                        out.positions.push(at.map(|x| x as f32));
                         out.kinds.push(if local & 3 == KIND_APEX {
                             VERTEX_APEX
                         } else if local & 3 == cell::KIND_FACE {
@@ -500,7 +541,8 @@ pub fn combined_surface(volume: &LabelVolume, all: &Interfaces) -> (Mesh, Vec<[i
         triangles.push(tri.map(|v| {
             if local[v as usize] == u32::MAX {
                 local[v as usize] = positions.len() as u32;
-                positions.push(grid.world(all.positions[v as usize]).map(|x| x as f32));
+                let p = all.positions[v as usize].map(f64::from);
+                positions.push(grid.world(p).map(|x| x as f32));
             }
             local[v as usize]
         }));
@@ -528,12 +570,6 @@ fn assemble(
 ) -> Vec<LabelSurface> {
     use rayon::prelude::*;
     let n_labels = volume.labels.len();
-    // Every vertex in mm once (most belong to two surfaces), in parallel.
-    let mm: Vec<[f32; 3]> = all
-        .positions
-        .par_iter()
-        .map(|&p| to_mm(p).map(|x| x as f32))
-        .collect();
     // Each triangle goes to the labels on its two sides (background has no surface): per
     // fixed stretch of triangles, in parallel, the triangles of each label in order.
     const STRETCH: usize = 1 << 15;
@@ -545,8 +581,11 @@ fn assemble(
             let mut own: Vec<Vec<u32>> = vec![Vec::new(); n_labels + 1];
             for (t, s) in sides.iter().enumerate() {
                 let t = (c * STRETCH + t) as u32;
-                own[s[0] as usize].push(t);
-                own[s[1] as usize].push(t);
+                for l in *s {
+                    if l != 0 {
+                        own[l as usize].push(t);
+                    }
+                }
             }
             own
         })
@@ -586,15 +625,25 @@ fn assemble(
                     if local[v as usize] == u32::MAX {
                         local[v as usize] = positions.len() as u32;
                         used.push(v);
-                        positions.push(mm[v as usize]);
+                        // In mm as the label first uses it (about twice per vertex in all:
+                        // cheaper than a shared array of every vertex in mm).
+                        let p = to_mm(all.positions[v as usize].map(f64::from));
+                        positions.push(p.map(|x| x as f32));
                     }
                     local[v as usize]
                 }));
             }
+            // Indices are in range by construction; only the coordinates are checked.
+            let finite = positions.iter().flatten().all(|x| x.is_finite());
             for v in used {
                 local[v as usize] = u32::MAX;
             }
-            let mesh = Mesh::new(positions, triangles).unwrap_or_default();
+            // A grid that maps voxels beyond f32's range leaves the surface empty.
+            let mesh = if finite {
+                Mesh::from_checked_parts(positions, triangles)
+            } else {
+                Mesh::new(positions, triangles).unwrap_or_default()
+            };
             LabelSurface { label, mesh }
         })
         .collect()
