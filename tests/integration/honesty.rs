@@ -2,7 +2,7 @@
 //! reads, configs that cannot work are refused before anything runs, and the cluster and
 //! workflow helpers do what they say.
 
-mod common;
+use crate::common;
 
 use common::cohort::{cohort, destair, smooth, stderr, CONFIG};
 use std::path::{Path, PathBuf};

@@ -2,7 +2,7 @@
 //! result meets the quality the cfd profile promises (angles, edge lengths, distance to the
 //! input), it is free of self-intersections, and it is the same for any thread count.
 
-mod common;
+use crate::common;
 
 use common::{aneurysm, icosphere};
 use destair::cfd::{check_surface, close_open_ends, find_patches, Inlet, Patches};

@@ -2,7 +2,7 @@
 //! way on reruns and rotations, with the inlet chosen as asked; surfaces that are not one
 //! 2-manifold vessel refused with the reason.
 
-mod common;
+use crate::common;
 
 use common::{aneurysm, open_box};
 use destair::cfd::{

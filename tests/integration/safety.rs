@@ -4,7 +4,7 @@
 //! clear errors; and a randomized soak of all of these ends with untouched inputs and the
 //! bytes of a clean run.
 
-mod common;
+use crate::common;
 
 use common::cohort::{cohort, destair, peak_rss_kb, smooth, snapshot, stderr};
 use std::collections::BTreeMap;

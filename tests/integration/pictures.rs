@@ -1,6 +1,6 @@
 //! Pictures show what they claim, and are the same bytes for any thread count.
 
-mod common;
+use crate::common;
 
 use destair::render::colour::viridis;
 use destair::render::{sheet::panel_origin, Camera, FRONT_OBLIQUE};

@@ -1,7 +1,7 @@
 //! Every PLY dialect real writers produce decodes to the same mesh; PLY and STL round trips
 //! are bit-exact; STL and OBJ readers agree with PLY.
 
-mod common;
+use crate::common;
 
 use common::*;
 use destair::io::ply::encode_ply;

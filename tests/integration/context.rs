@@ -2,7 +2,7 @@
 //! Tables 4, 5), staircase and cap detection (§3.2, §3.3, §4.3), context- and distance-aware
 //! smoothing (Table 3; Moench 2010 Table 1).
 
-mod common;
+use crate::common;
 
 use common::icosphere;
 use destair::analysis::{stack_axis, StackAxis, StackAxisParams};

@@ -4,7 +4,7 @@
 //! axis-aligned one up to the rigid motion; outputs are in world LPS or RAS; resume, name
 //! clashes, images that are not segmentations and corrupt files behave as for meshes.
 
-mod common;
+use crate::common;
 
 use common::cohort::{destair, stderr};
 use destair::io::{read_mesh, ReadOptions};

@@ -1,6 +1,6 @@
 //! End-to-end tests of the `destair` binary.
 
-mod common;
+use crate::common;
 
 use std::process::Command;
 

@@ -1,7 +1,7 @@
 //! Corrupt, lying and random input: every reader returns an error (never panics, never hangs)
 //! and allocates no more than a small multiple of the file size, whatever the header claims.
 
-mod common;
+use crate::common;
 
 use common::*;
 use destair::io::ply::encode_ply;

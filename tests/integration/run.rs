@@ -1,7 +1,7 @@
 //! The cohort runner end to end: failures are contained, reruns resume, shards add up, a killed
 //! run resumes to the same bytes, and memory does not grow with the cohort.
 
-mod common;
+use crate::common;
 
 use common::cohort::{cohort, destair, snapshot};
 use std::process::Command;

@@ -2,7 +2,7 @@
 //! pictures (rendered by headless Chromium where it is installed), and .vtp files that VTK
 //! reads with every array (checked with VTK's Python package where it is installed).
 
-mod common;
+use crate::common;
 
 use common::cohort::{cohort, destair, stderr};
 use std::path::{Path, PathBuf};

@@ -1,7 +1,7 @@
 //! Smoothers against hand-computed values and the papers' claims on the phantoms; metrics
 //! against brute force.
 
-mod common;
+use crate::common;
 
 use destair::metrics::{average_normal_curvature, enclosed_volume, surface_distance};
 use destair::phantom::{named_case, PhantomOptions};
