@@ -95,10 +95,17 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
             println!("  caps               {:.4} s", r.caps_s);
             println!("  triangle grid      {:.4} s", r.grid_build_s);
             println!(
-                "  {} exact queries  {:.4} s  ({:.2} M queries/s)",
+                "  {} exact queries  {:.4} s  ({:.2} M queries/s), 1.5 mm off the surface",
                 r.n_queries,
                 r.queries_s,
                 r.queries_per_s / 1e6
+            );
+            println!(
+                "  {} exact queries  {:.4} s  ({:.2} M queries/s), {:.1} mm away on average",
+                r.n_queries,
+                r.far_queries_s,
+                r.far_queries_per_s / 1e6,
+                r.far_mean_distance_mm
             );
         }
         Args::Smooth {

@@ -3,6 +3,7 @@
 //! until no unvisited cell can hold anything closer; exact triangle-triangle intersection
 //! ([`intersect`]).
 
+pub mod bvh;
 pub mod intersect;
 
 use crate::mesh::Mesh;
@@ -157,7 +158,15 @@ pub struct TriangleGrid {
     dims: [usize; 3],
     cell_offsets: Vec<u32>,
     cell_triangles: Vec<u32>,
+    /// For queries the first rings of cells do not settle (far from the surface); built on
+    /// the first such query, so grids only ever queried near the surface never pay for it.
+    tree: std::sync::OnceLock<bvh::TriangleBvh>,
 }
+
+/// Rings of grid cells searched before a query that has found nothing yet, or is still far
+/// from settled, goes to the tree instead: beyond that, the cells to visit grow with the cube
+/// of the distance and the tree's pruning wins.
+const NEAR_RINGS: usize = 1;
 
 /// The nearest point of a surface to a query point.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -263,6 +272,7 @@ impl TriangleGrid {
             dims,
             cell_offsets,
             cell_triangles,
+            tree: std::sync::OnceLock::new(),
         }
     }
 
@@ -312,6 +322,7 @@ impl TriangleGrid {
         // None yet: a triangle exactly at `within` still counts.
         let mut best_triangle = u32::MAX;
         let max_ring = dims.iter().copied().max().unwrap_or(1);
+        let mut settled = false;
         for r in 0..=max_ring {
             let lo: [usize; 3] = std::array::from_fn(|a| center[a].saturating_sub(r));
             let hi: [usize; 3] = std::array::from_fn(|a| (center[a] + r).min(dims[a] - 1));
@@ -382,7 +393,27 @@ impl TriangleGrid {
                 }
             }
             if best <= bound {
+                settled = true;
                 break;
+            }
+            // Nothing found yet, or more than two rings still to search: the rings left grow
+            // with the cube of the distance, the tree's search does not.
+            if r >= NEAR_RINGS && (best_triangle == u32::MAX || best > bound + 2.0 * self.cell) {
+                break;
+            }
+        }
+        if !settled {
+            // Far from the surface: the tree finds the nearest of all triangles no further
+            // than the best so far (the same answer, ties included, as more rings would).
+            if let Some((d, f)) = self
+                .tree
+                .get_or_init(|| bvh::TriangleBvh::build(&self.triangles))
+                .nearest_matching_within(&self.triangles, &self.spheres, p, best, &keep)
+            {
+                if d < best || (d == best && f < best_triangle) {
+                    best = d;
+                    best_triangle = f;
+                }
             }
         }
         (best_triangle != u32::MAX).then_some(Nearest {
