@@ -4,9 +4,9 @@
 //! cells, but a query 1 cm away searches every cell within 1 cm: a cubic cost. The tree
 //! prunes whole empty regions at once, so its cost grows with the logarithm of the mesh size
 //! whatever the distance. Built by median splits on the longest axis of the centroids
-//! (subtrees in parallel), nodes in depth-first order, at most [`LEAF`] triangles per leaf.
+//! (subtrees in parallel), nodes in depth-first order, at most four triangles per leaf.
 
-use super::point_triangle_distance;
+use super::{offer, point_triangle_distance};
 use rayon::prelude::*;
 
 /// Most triangles in a leaf.
@@ -94,21 +94,8 @@ impl TriangleBvh {
             if node.count > 0 {
                 let start = node.start_or_skip as usize;
                 for &f in &self.order[start..start + node.count as usize] {
-                    if !keep(f) {
-                        continue;
-                    }
-                    let (centre, radius) = spheres[f as usize];
-                    let to_centre = (0..3)
-                        .map(|a| (q[a] - centre[a]).powi(2))
-                        .sum::<f64>()
-                        .sqrt();
-                    if to_centre - radius > best {
-                        continue;
-                    }
-                    let d = point_triangle_distance(p, triangles[f as usize]);
-                    if d < best || (d == best && f < best_triangle) {
-                        best = d;
-                        best_triangle = f;
+                    if keep(f) {
+                        offer(triangles, spheres, p, f, &mut best, &mut best_triangle);
                     }
                 }
                 continue;

@@ -147,6 +147,32 @@ pub(crate) fn grid_cells(extent: [f64; 3], wanted: f64, n_items: usize) -> (f64,
     (cell, dims)
 }
 
+/// Offers triangle `f` to a nearest-point search from `p`: skipped when its bounding sphere
+/// lies further than the best distance so far (mm), taken when it is closer, or as close with
+/// a lower index (so the answer does not depend on the order triangles are offered in).
+pub(crate) fn offer(
+    triangles: &[[[f32; 3]; 3]],
+    spheres: &[([f64; 3], f64)],
+    p: [f32; 3],
+    f: u32,
+    best: &mut f64,
+    best_triangle: &mut u32,
+) {
+    let (centre, radius) = spheres[f as usize];
+    let to_centre = (0..3)
+        .map(|a| (p[a] as f64 - centre[a]).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    if to_centre - radius > *best {
+        return;
+    }
+    let d = point_triangle_distance(p, triangles[f as usize]);
+    if d < *best || (d == *best && f < *best_triangle) {
+        *best = d;
+        *best_triangle = f;
+    }
+}
+
 /// A uniform grid over a mesh's triangles for nearest-triangle queries. Build once, query many.
 #[derive(Debug, Clone)]
 pub struct TriangleGrid {
@@ -346,21 +372,9 @@ impl TriangleGrid {
                 let ids = &self.cell_triangles
                     [self.cell_offsets[c] as usize..self.cell_offsets[c + 1] as usize];
                 for &f in ids {
-                    if !keep(f) {
-                        continue;
-                    }
-                    let (centre, radius) = self.spheres[f as usize];
-                    let to_centre = (0..3)
-                        .map(|a| (q[a] - centre[a]).powi(2))
-                        .sum::<f64>()
-                        .sqrt();
-                    if to_centre - radius > best {
-                        continue;
-                    }
-                    let d = point_triangle_distance(p, self.triangles[f as usize]);
-                    if d < best || (d == best && f < best_triangle) {
-                        best = d;
-                        best_triangle = f;
+                    if keep(f) {
+                        let (triangles, spheres) = (&self.triangles, &self.spheres);
+                        offer(triangles, spheres, p, f, &mut best, &mut best_triangle);
                     }
                 }
             };
