@@ -1,6 +1,7 @@
 //! Exact point-to-surface distance: the closest point on a triangle, and a uniform grid over a
 //! mesh's triangles that answers nearest-triangle queries by searching rings of cells outward
-//! until no unvisited cell can hold anything closer; exact triangle-triangle intersection
+//! until no unvisited cell can hold anything closer (queries far from the surface go to a
+//! bounding volume hierarchy instead, [`bvh`]); exact triangle-triangle intersection
 //! ([`intersect`]).
 
 pub mod bvh;
