@@ -218,17 +218,6 @@ fn subtree(order: &mut [u32], base: usize, bounds: &[([f32; 3], [f32; 3])]) -> V
 mod tests {
     use super::*;
 
-    fn sphere(t: &[[f32; 3]; 3]) -> ([f64; 3], f64) {
-        let c: [f64; 3] =
-            std::array::from_fn(|a| (t[0][a] as f64 + t[1][a] as f64 + t[2][a] as f64) / 3.0);
-        let r = t
-            .iter()
-            .map(|q| (0..3).map(|a| (q[a] as f64 - c[a]).powi(2)).sum::<f64>())
-            .fold(0.0, f64::max)
-            .sqrt();
-        (c, r)
-    }
-
     #[test]
     fn the_tree_finds_what_testing_every_triangle_finds() {
         let mut rng = fastrand::Rng::with_seed(21);
@@ -244,7 +233,7 @@ mod tests {
             if n > 3 {
                 triangles[n - 1] = triangles[0];
             }
-            let spheres: Vec<_> = triangles.iter().map(sphere).collect();
+            let spheres: Vec<_> = triangles.iter().map(super::super::sphere_around).collect();
             let tree = TriangleBvh::build(&triangles);
             for _ in 0..200 {
                 // Near and far: up to 60 mm outside the box.

@@ -148,6 +148,18 @@ pub(crate) fn grid_cells(extent: [f64; 3], wanted: f64, n_items: usize) -> (f64,
     (cell, dims)
 }
 
+/// A sphere around a triangle: its centroid and the distance to its furthest corner (mm).
+pub(crate) fn sphere_around(t: &[[f32; 3]; 3]) -> ([f64; 3], f64) {
+    let c: [f64; 3] =
+        std::array::from_fn(|a| (t[0][a] as f64 + t[1][a] as f64 + t[2][a] as f64) / 3.0);
+    let r = t
+        .iter()
+        .map(|q| (0..3).map(|a| (q[a] as f64 - c[a]).powi(2)).sum::<f64>())
+        .fold(0.0, f64::max)
+        .sqrt();
+    (c, r)
+}
+
 /// Offers triangle `f` to a nearest-point search from `p`: skipped when its bounding sphere
 /// lies further than the best distance so far (mm), taken when it is closer, or as close with
 /// a lower index (so the answer does not depend on the order triangles are offered in).
@@ -277,20 +289,7 @@ impl TriangleGrid {
                 }
             }
         }
-        let spheres = triangles
-            .par_iter()
-            .map(|t| {
-                let c: [f64; 3] = std::array::from_fn(|a| {
-                    (t[0][a] as f64 + t[1][a] as f64 + t[2][a] as f64) / 3.0
-                });
-                let r = t
-                    .iter()
-                    .map(|q| (0..3).map(|a| (q[a] as f64 - c[a]).powi(2)).sum::<f64>())
-                    .fold(0.0, f64::max)
-                    .sqrt();
-                (c, r)
-            })
-            .collect();
+        let spheres = triangles.par_iter().map(sphere_around).collect();
         TriangleGrid {
             triangles,
             spheres,
