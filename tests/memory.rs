@@ -6,18 +6,12 @@
 
 mod common;
 
-use common::cohort::{cohort, destair, peak_rss_kb};
+use common::cohort::{cohort, destair, peak_rss_kb, write_config};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
 /// Held by each test here, so they run one after the other.
 static ALONE: Mutex<()> = Mutex::new(());
-
-fn write_config(dir: &Path, name: &str, text: &str) -> PathBuf {
-    let path = dir.join(name);
-    std::fs::write(&path, text).unwrap();
-    path
-}
 
 /// A cohort of `n` copies of one phantom case, so that only the number of cases differs. The
 /// memory budget admits one case at a time, so the peak does not depend on how the threads

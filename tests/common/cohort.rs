@@ -5,6 +5,13 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+/// Writes a config file `name` with `text` into `dir`; its path.
+pub fn write_config(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
 /// Runs the destair binary to completion.
 pub fn destair(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_destair"))

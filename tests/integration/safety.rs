@@ -6,7 +6,7 @@
 
 use crate::common;
 
-use common::cohort::{cohort, destair, smooth, snapshot, stderr};
+use common::cohort::{cohort, destair, smooth, snapshot, stderr, write_config};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -34,12 +34,6 @@ fn hashes(dir: &Path) -> BTreeMap<String, String> {
         .into_iter()
         .map(|(k, v)| (k, blake3::hash(&v).to_hex().to_string()))
         .collect()
-}
-
-fn write_config(dir: &Path, name: &str, text: &str) -> PathBuf {
-    let p = dir.join(name);
-    std::fs::write(&p, text).unwrap();
-    p
 }
 
 /// The standard config with other `[input]`/`[output]` roots and extra lines.
