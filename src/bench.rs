@@ -14,16 +14,28 @@ use std::time::Instant;
 /// The same mesh with its vertices renumbered by a seeded permutation: this removes the
 /// memory locality that marching-cubes output has and shows the worst case.
 pub fn shuffled(mesh: &Mesh, seed: u64) -> Mesh {
-    let mut order: Vec<u32> = (0..mesh.n_vertices() as u32).collect();
+    renumbered(mesh, &permutation(mesh.n_vertices(), seed))
+}
+
+/// A seeded random permutation of 0..n.
+pub fn permutation(n: usize, seed: u64) -> Vec<u32> {
+    let mut order: Vec<u32> = (0..n as u32).collect();
     fastrand::Rng::with_seed(seed).shuffle(&mut order);
-    let mut positions = vec![[0.0f32; 3]; mesh.n_vertices()];
-    for (v, &p) in mesh.positions().iter().enumerate() {
-        positions[order[v] as usize] = p;
+    order
+}
+
+/// The mesh with vertex `old[i]` numbered i (`old` a permutation of its vertices); the faces keep
+/// their order.
+pub fn renumbered(mesh: &Mesh, old: &[u32]) -> Mesh {
+    let mut new = vec![0u32; old.len()];
+    for (i, &v) in old.iter().enumerate() {
+        new[v as usize] = i as u32;
     }
+    let positions = old.iter().map(|&v| mesh.positions()[v as usize]).collect();
     let triangles = mesh
         .triangles()
         .iter()
-        .map(|t| t.map(|v| order[v as usize]))
+        .map(|t| t.map(|v| new[v as usize]))
         .collect();
     Mesh::from_checked_parts(positions, triangles)
 }
@@ -205,11 +217,45 @@ pub struct SmoothBench {
     pub iterations: usize,
     pub threads: usize,
     pub smoothers: Vec<SmoothTiming>,
+    /// Laplace on the same surface in other vertex numberings, the file order the kernels get.
+    pub numberings: Vec<NumberingTiming>,
+    /// Copy bandwidth of this machine (GB/s, bytes read plus bytes written), and the time Laplace
+    /// needs at that rate to stream its arrays once per iteration (s): the memory-bandwidth bound.
+    pub copy_gb_per_s: f64,
+    pub laplace_bound_s: f64,
     /// Symmetric Hausdorff distance between the phantom and its Laplace-smoothed version,
     /// including building both triangle grids (seconds).
     pub hausdorff_s: f64,
     /// Point-to-surface queries per second within that measurement.
     pub hausdorff_queries_per_s: f64,
+}
+
+/// Laplace's time on one vertex numbering of the bench mesh.
+#[derive(Debug, Serialize)]
+pub struct NumberingTiming {
+    /// `phantom` (the marching cubes' own), `scanline` (rows of cells, as VTK's flying edges
+    /// writes them) or `shuffled` (a seeded permutation: a worst case).
+    pub numbering: &'static str,
+    /// Seconds for the iterations, renumbering included when the kernels do it (best run).
+    pub seconds: f64,
+    /// Whether the smoother found the numbering scattered and ran in scanline order.
+    pub renumbered: bool,
+    /// Largest difference from the phantom numbering's result, vertex for vertex (mm).
+    pub max_difference_mm: f32,
+}
+
+/// Best copy bandwidth over a 256 MB buffer in GB/s, counting bytes read and written.
+pub fn copy_bandwidth(repeat: usize) -> f64 {
+    use rayon::prelude::*;
+    let n = 32 << 20;
+    let src: Vec<u64> = (0..n as u64).into_par_iter().collect();
+    let mut dst = vec![0u64; n];
+    let (s, _) = best_of(repeat.max(3), || {
+        dst.par_chunks_mut(1 << 16)
+            .zip(src.par_chunks(1 << 16))
+            .for_each(|(d, s)| d.copy_from_slice(s));
+    });
+    (2 * 8 * n) as f64 / s / 1e9
 }
 
 /// Times every smoother for `iterations` iterations on the `big` phantom of about
@@ -270,6 +316,48 @@ pub fn smooth(triangles: usize, iterations: usize, repeat: usize) -> SmoothBench
             }
         })
         .collect();
+    let laplace = Method::Laplace { lambda: 0.5 };
+    let numberings = ["phantom", "scanline", "shuffled"]
+        .into_iter()
+        .map(|numbering| {
+            // The same surface renumbered: vertex i of it is vertex old[i] of the phantom.
+            let old: Vec<u32> = match numbering {
+                "scanline" => {
+                    let (o, n) = topology.neighbor_csr();
+                    crate::mesh::order::scanline(mesh.positions(), o, n).old
+                }
+                "shuffled" => permutation(mesh.n_vertices(), 7),
+                _ => (0..mesh.n_vertices() as u32).collect(),
+            };
+            let renamed = renumbered(&mesh, &old);
+            let t = Topology::build(&renamed);
+            let (o, n) = t.neighbor_csr();
+            let w = VertexWeights::uniform(renamed.n_vertices());
+            let free = vec![false; renamed.n_vertices()];
+            let (seconds, (positions, _)) = best_of(repeat, || {
+                smooth(&renamed, &t, &laplace, iterations, &w, &free)
+            });
+            let max_difference_mm = positions
+                .iter()
+                .zip(&old)
+                .map(|(p, &v)| {
+                    let q = smoothed.positions()[v as usize];
+                    (0..3).map(|k| (p[k] - q[k]).abs()).fold(0.0f32, f32::max)
+                })
+                .fold(0.0f32, f32::max);
+            NumberingTiming {
+                numbering,
+                seconds,
+                renumbered: crate::mesh::order::is_scattered(o, n),
+                max_difference_mm,
+            }
+        })
+        .collect();
+    let copy_gb_per_s = copy_bandwidth(repeat);
+    // Per iteration: positions read and written, offsets, step scales, and the neighbour lists.
+    let (_, neighbors) = topology.neighbor_csr();
+    let bytes = (mesh.n_vertices() * (12 + 12 + 4 + 4) + 4 * neighbors.len()) * iterations;
+    let laplace_bound_s = bytes as f64 / (copy_gb_per_s * 1e9);
     let (hausdorff_s, _) = best_of(repeat, || {
         crate::metrics::hausdorff_distance(&mesh, &smoothed)
     });
@@ -279,6 +367,9 @@ pub fn smooth(triangles: usize, iterations: usize, repeat: usize) -> SmoothBench
         iterations,
         threads: rayon::current_num_threads(),
         smoothers,
+        numberings,
+        copy_gb_per_s,
+        laplace_bound_s,
         hausdorff_s,
         hausdorff_queries_per_s: (2 * mesh.n_vertices()) as f64 / hausdorff_s,
     }

@@ -5,7 +5,7 @@
 //! when the largest step falls below a threshold (the paper uses 0.002).
 
 use super::{max_step, neighbour_mean, CHUNK};
-use crate::mesh::{Mesh, Topology};
+use crate::mesh::Mesh;
 use rayon::prelude::*;
 
 /// The region a vertex's displacement from its original position is clipped to.
@@ -68,7 +68,7 @@ pub fn cell_edge_axes(mesh: &Mesh, voxel: [f32; 3]) -> Vec<Option<u8>> {
 #[allow(clippy::too_many_arguments)]
 pub(super) fn relax(
     original: &[[f32; 3]],
-    topology: &Topology,
+    (offsets, neighbors): (&[u32], &[u32]),
     scale: &[f32],
     lambda: f32,
     region: Region,
@@ -76,7 +76,6 @@ pub(super) fn relax(
     threshold: f32,
     max_iterations: usize,
 ) -> (Vec<[f32; 3]>, usize, f32, bool) {
-    let (offsets, neighbors) = topology.neighbor_csr();
     let mut a = original.to_vec();
     let mut b = original.to_vec();
     let mut last = 0.0f32;

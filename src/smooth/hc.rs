@@ -11,19 +11,17 @@
 //! Weight 0 still keeps a vertex exactly in place.
 
 use super::{max_step, neighbour_mean, CHUNK};
-use crate::mesh::Topology;
 use rayon::prelude::*;
 
 pub(super) fn hc(
     original: &[[f32; 3]],
-    topology: &Topology,
+    (offsets, neighbors): (&[u32], &[u32]),
     scale: &[f32],
     lambda: f32,
     alpha: f32,
     beta: f32,
     iterations: usize,
 ) -> (Vec<[f32; 3]>, f32) {
-    let (offsets, neighbors) = topology.neighbor_csr();
     let n = original.len();
     let mut q = original.to_vec();
     let mut p = original.to_vec();
