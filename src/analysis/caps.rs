@@ -19,7 +19,7 @@
 
 use crate::mesh::geometry::{face_normals, triangle_area_vector};
 use crate::mesh::{Mesh, Topology};
-use crate::metrics::vertex_normal_turn;
+use crate::metrics::normal_curvature::TurnLimits;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::collections::VecDeque;
@@ -295,18 +295,11 @@ fn caps_of(
     let n_faces = mesh.n_triangles();
     let tris = mesh.triangles();
     let p = mesh.positions();
-    let turn = vertex_normal_turn(mesh, topology);
+    let flat_vertex = TurnLimits::new(mesh, topology).within(params.flat_deg, flat_deg_per_mm);
     let normals = face_normals(mesh);
     let degenerate = |f: usize| normals[f] == [0.0; 3];
     let flat: Vec<bool> = (0..n_faces)
-        .map(|f| {
-            !degenerate(f)
-                && tris[f].iter().all(|&v| {
-                    turn[v as usize].is_some_and(|t| {
-                        t.deg <= params.flat_deg && t.deg_per_mm <= flat_deg_per_mm
-                    })
-                })
-        })
+        .map(|f| !degenerate(f) && tris[f].iter().all(|&v| flat_vertex[v as usize]))
         .collect();
     // Connected flat regions.
     let mut region = vec![NONE; n_faces];
@@ -353,6 +346,7 @@ fn caps_of(
         n_terraces: 0,
         n_from_smoothed_copy: 0,
     };
+    let mut stamp = vec![NONE; mesh.n_vertices()];
     // Growth limits as cosines (no acos per visited face).
     let cos_step = params.grow_step_deg.to_radians().cos();
     let cos_total = params.grow_total_deg.to_radians().cos();
@@ -378,10 +372,19 @@ fn caps_of(
             }
         }
         let normal = region_normal(mesh, faces);
-        let mut vertices: Vec<u32> = faces.iter().flat_map(|&f| tris[f as usize]).collect();
-        vertices.sort_unstable();
-        vertices.dedup();
-        let in_region = |v: u32| vertices.binary_search(&v).is_ok();
+        // The region's vertices, each stamped with its id once: no sort of every corner and no
+        // search per lookup (a region can be the whole of a finely sampled surface).
+        let mut vertices: Vec<u32> = Vec::new();
+        for &f in faces.iter() {
+            for v in tris[f as usize] {
+                if stamp[v as usize] != id {
+                    stamp[v as usize] = id;
+                    vertices.push(v);
+                }
+            }
+        }
+        vertices.par_sort_unstable();
+        let in_region = |v: u32| stamp[v as usize] == id;
         // Border vertices: some incident face outside the region.
         let border: Vec<u32> = vertices
             .iter()

@@ -22,7 +22,7 @@
 
 use crate::mesh::geometry::triangle_area_vector;
 use crate::mesh::{Mesh, Topology};
-use crate::metrics::vertex_normal_turn;
+use crate::metrics::normal_curvature::TurnLimits;
 use crate::parallel::deterministic_sum;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -114,12 +114,12 @@ fn canonical(a: [f64; 3]) -> [f64; 3] {
 
 /// Estimates the stack axis of a mesh from its face normals.
 pub fn stack_axis(mesh: &Mesh, topology: &Topology, params: &StackAxisParams) -> StackAxis {
-    let turn = vertex_normal_turn(mesh, topology);
-    let candidate = |v: u32| {
-        turn[v as usize]
-            .is_some_and(|t| t.deg <= params.flat_deg && t.deg_per_mm <= params.flat_deg_per_mm)
-    };
-    let supporting = |v: u32| turn[v as usize].is_some_and(|t| t.deg <= params.support_flat_deg);
+    let turns = TurnLimits::new(mesh, topology);
+    let flat = turns.within(params.flat_deg, params.flat_deg_per_mm);
+    let support = turns.within(params.support_flat_deg, f32::INFINITY);
+    drop(turns);
+    let candidate = |v: u32| flat[v as usize];
+    let supporting = |v: u32| support[v as usize];
     // Evidence is the area of flat faces, not a face count: slivers (which marching cubes makes
     // wherever the surface passes close to a grid point) then cannot outvote real terraces.
     let unit_normals = |flat: &(dyn Fn(u32) -> bool + Sync)| -> (Vec<[f64; 3]>, Vec<f64>) {

@@ -46,14 +46,7 @@ pub fn vertex_normal_turn(mesh: &Mesh, topology: &Topology) -> Vec<Option<Normal
                     continue;
                 }
                 let angle = angle_between(n, m);
-                let t = triangles[f as usize];
-                let distance = (0..3)
-                    .map(|k| {
-                        let c = (t.iter().map(|&w| p[w as usize][k] as f64).sum::<f64>()) / 3.0;
-                        (c - p[v][k] as f64).powi(2)
-                    })
-                    .sum::<f64>()
-                    .sqrt();
+                let distance = centroid_distance(p, triangles[f as usize], v);
                 let rate = if distance > 0.0 {
                     angle / distance
                 } else {
@@ -65,6 +58,93 @@ pub fn vertex_normal_turn(mesh: &Mesh, topology: &Topology) -> Vec<Option<Normal
                 deg: a.to_degrees() as f32,
                 deg_per_mm: r.to_degrees() as f32,
             })
+        })
+        .collect()
+}
+
+/// A mesh's face and vertex normals, to ask which vertices turn within limits (flat-vertex
+/// tests of cap and stack-axis detection) without computing every turn.
+pub struct TurnLimits<'a> {
+    mesh: &'a Mesh,
+    topology: &'a Topology,
+    fnormals: Vec<[f32; 3]>,
+    vnormals: Vec<[f32; 3]>,
+}
+
+impl<'a> TurnLimits<'a> {
+    pub fn new(mesh: &'a Mesh, topology: &'a Topology) -> Self {
+        Self {
+            mesh,
+            topology,
+            fnormals: face_normals(mesh),
+            vnormals: vertex_normals(mesh, topology),
+        }
+    }
+
+    /// Per vertex: whether its normal curvature is at most `max_deg` and its turn per mm at
+    /// most `max_deg_per_mm` (false where undefined). The same decision as comparing
+    /// [`vertex_normal_turn`]'s values, but the arctangent is taken only for faces near a
+    /// limit: below a limit by a margin far above rounding, tan(angle) (a ratio, an upper bound
+    /// of the angle) already decides.
+    pub fn within(&self, max_deg: f32, max_deg_per_mm: f32) -> Vec<bool> {
+        vertices_within(self, max_deg, max_deg_per_mm)
+    }
+}
+
+fn vertices_within(limits: &TurnLimits, max_deg: f32, max_deg_per_mm: f32) -> Vec<bool> {
+    let TurnLimits {
+        mesh,
+        topology,
+        fnormals,
+        vnormals,
+    } = limits;
+    let (p, triangles) = (mesh.positions(), mesh.triangles());
+    // Limits in radians, less a relative margin of 1e-6 for the quick test.
+    let safe = 1.0 - 1e-6;
+    let max_rad = f64::from(max_deg).to_radians();
+    let tan_max = (max_rad * safe).tan();
+    let max_rate = f64::from(max_deg_per_mm).to_radians();
+    let within_deg = |angle: f64| (angle.to_degrees() as f32) <= max_deg;
+    let within_rate = |rate: f64| (rate.to_degrees() as f32) <= max_deg_per_mm;
+    (0..mesh.n_vertices())
+        .into_par_iter()
+        .map(|v| {
+            let n = vnormals[v];
+            if n == [0.0; 3] {
+                return false;
+            }
+            let mut defined = false;
+            for &f in topology.vertex_faces(v) {
+                let m = fnormals[f as usize];
+                if m == [0.0; 3] {
+                    continue;
+                }
+                defined = true;
+                let (sin, cos) = sin_cos_between(n, m);
+                // Below the angle limit for certain when tan(angle) is below tan(limit).
+                let quick = cos > 0.0 && max_rad * safe < std::f64::consts::FRAC_PI_2;
+                let angle = (!(quick && sin <= cos * tan_max)).then(|| sin.atan2(cos));
+                if angle.is_some_and(|a| !within_deg(a)) {
+                    return false;
+                }
+                if max_deg_per_mm == f32::INFINITY {
+                    continue;
+                }
+                let t = triangles[f as usize];
+                let distance = centroid_distance(p, t, v);
+                if distance <= 0.0 {
+                    // An infinite rate: within only an infinite limit.
+                    return false;
+                }
+                if quick && sin <= cos * max_rate * safe * distance {
+                    continue;
+                }
+                let a = angle.unwrap_or_else(|| sin.atan2(cos));
+                if !within_rate(a / distance) {
+                    return false;
+                }
+            }
+            defined
         })
         .collect()
 }
@@ -82,6 +162,12 @@ pub fn average_normal_curvature(mesh: &Mesh, topology: &Topology) -> f64 {
 
 /// Angle between two unit vectors in radians, accurate near 0 (atan2 of |a x b| and a . b).
 fn angle_between(a: [f32; 3], b: [f32; 3]) -> f64 {
+    let (sin, cos) = sin_cos_between(a, b);
+    sin.atan2(cos)
+}
+
+/// |a x b| and a . b in f64: the sine and cosine of the angle between unit vectors.
+fn sin_cos_between(a: [f32; 3], b: [f32; 3]) -> (f64, f64) {
     let a = [a[0] as f64, a[1] as f64, a[2] as f64];
     let b = [b[0] as f64, b[1] as f64, b[2] as f64];
     let c = [
@@ -91,7 +177,18 @@ fn angle_between(a: [f32; 3], b: [f32; 3]) -> f64 {
     ];
     let sin = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
     let cos = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-    sin.atan2(cos)
+    (sin, cos)
+}
+
+/// Distance from vertex `v` to the centroid of triangle `t` (mm, f64).
+fn centroid_distance(p: &[[f32; 3]], t: [u32; 3], v: usize) -> f64 {
+    (0..3)
+        .map(|k| {
+            let c = (t.iter().map(|&w| p[w as usize][k] as f64).sum::<f64>()) / 3.0;
+            (c - p[v][k] as f64).powi(2)
+        })
+        .sum::<f64>()
+        .sqrt()
 }
 
 #[cfg(test)]
@@ -119,5 +216,41 @@ mod tests {
         assert_eq!(c[2], Some(0.0));
         assert_eq!(c[3], Some(0.0));
         assert!((average_normal_curvature(&m, &t) - 22.5).abs() < 1e-4);
+    }
+
+    /// The quick tangent test decides as the values of `vertex_normal_turn` do, also with the
+    /// limits set to values that occur (ties) and just around them.
+    #[test]
+    fn turns_within_limits_agree_with_the_turn_values() {
+        let case = crate::phantom::big_case(20_000, &Default::default());
+        let mut mesh = case.meshes[0].1.clone();
+        let mut rng = fastrand::Rng::with_seed(4);
+        for p in mesh.positions_mut().iter_mut() {
+            for x in p.iter_mut() {
+                *x += (rng.f32() - 0.5) * 0.2;
+            }
+        }
+        let topology = Topology::build(&mesh);
+        let turn = vertex_normal_turn(&mesh, &topology);
+        let defined: Vec<NormalTurn> = turn.iter().flatten().copied().collect();
+        let mut limits: Vec<(f32, f32)> = vec![(5.0, f32::INFINITY), (5.0, 3.0), (0.0, 0.0)];
+        for t in defined.iter().step_by(97) {
+            for d in [t.deg, t.deg.next_down(), t.deg.next_up()] {
+                limits.push((d, f32::INFINITY));
+                limits.push((d, t.deg_per_mm));
+                limits.push((90.0, t.deg_per_mm.next_down()));
+            }
+        }
+        let mut both = [0usize; 2];
+        for (max_deg, max_per_mm) in limits {
+            let fast = TurnLimits::new(&mesh, &topology).within(max_deg, max_per_mm);
+            for (v, t) in turn.iter().enumerate() {
+                let want = t.is_some_and(|t| t.deg <= max_deg && t.deg_per_mm <= max_per_mm);
+                assert_eq!(fast[v], want, "vertex {v}, limits {max_deg} / {max_per_mm}");
+                both[usize::from(want)] += 1;
+            }
+        }
+        // Both answers occur often.
+        assert!(both[0] > 10_000 && both[1] > 10_000, "{both:?}");
     }
 }
