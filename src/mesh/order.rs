@@ -1,6 +1,7 @@
 //! Cache-friendly orders for a mesh's vertices and faces, so that neighbours sit close together
 //! in memory. Kernels that visit every vertex and read its neighbours (smoothing, relaxation,
-//! projection) run up to 2.5x faster on meshes whose file order is scattered.
+//! projection) run 2-2.5x faster in such an order than in a shuffled one (Laplace on a 1 M
+//! triangle phantom).
 //!
 //! - [`locality_ordered`]: vertices along a Morton (Z-order) curve through their bounding box,
 //!   faces by their first vertex (the remesher's working order).
@@ -129,9 +130,8 @@ pub struct Renumbering {
 /// Scanline order: vertices sorted by the row of cells they lie in (z, then y) and then along
 /// x, with cells of about the mean edge length, as marching cubes and flying edges emit them.
 /// Neighbours then get numbers about a slice's worth of vertices apart. A parallel sort of one key
-/// per vertex, so it costs a small part of one smoothing pass over a scattered mesh; ties keep
-/// the old order, so it is the same for any thread count, and for any input order of the same
-/// mesh up to coincident vertices.
+/// per vertex (16-25 ms for 480 K vertices on 2 cores); ties keep the old order,
+/// so it is the same for any thread count.
 pub fn scanline(positions: &[[f32; 3]], offsets: &[u32], neighbors: &[u32]) -> Renumbering {
     let n = positions.len();
     let mut lo = [f32::INFINITY; 3];
