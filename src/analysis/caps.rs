@@ -371,7 +371,6 @@ fn caps_of(
                 }
             }
         }
-        let normal = region_normal(mesh, faces);
         // The region's vertices, each stamped with its id once: no sort of every corner and no
         // search per lookup (a region can be the whole of a finely sampled surface).
         let mut vertices: Vec<u32> = Vec::new();
@@ -383,22 +382,21 @@ fn caps_of(
                 }
             }
         }
-        vertices.par_sort_unstable();
         let in_region = |v: u32| stamp[v as usize] == id;
-        // Border vertices: some incident face outside the region.
-        let border: Vec<u32> = vertices
-            .iter()
-            .copied()
-            .filter(|&v| {
-                topology
-                    .vertex_faces(v as usize)
-                    .iter()
-                    .any(|&g| region[g as usize] != id)
-            })
-            .collect();
-        if border.is_empty() {
+        // Border vertices: some incident face outside the region. A region without one (a
+        // closed surface flat everywhere at this sampling) is no cap: nothing more to compute.
+        let on_border = |v: u32| {
+            topology
+                .vertex_faces(v as usize)
+                .iter()
+                .any(|&g| region[g as usize] != id)
+        };
+        if !vertices.iter().any(|&v| on_border(v)) {
             continue;
         }
+        vertices.par_sort_unstable();
+        let border: Vec<u32> = vertices.iter().copied().filter(|&v| on_border(v)).collect();
+        let normal = region_normal(mesh, faces);
         // Sign of the largest offset of the outside neighbours along the region normal,
         // counted where the slope is clear.
         let (mut up, mut down) = (0usize, 0usize);
