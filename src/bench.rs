@@ -258,19 +258,11 @@ pub fn copy_bandwidth(repeat: usize) -> f64 {
     (2 * 8 * n) as f64 / s / 1e9
 }
 
-/// Times every smoother for `iterations` iterations on the `big` phantom of about
-/// `triangles` triangles (relaxations run the full count, without stopping early), then the
-/// Hausdorff distance between the phantom and its smoothed version.
-pub fn smooth(triangles: usize, iterations: usize, repeat: usize) -> SmoothBench {
-    use crate::smooth::{smooth, Method};
-    use crate::weights::VertexWeights;
-    let (mesh, spacing) = big_mesh(triangles);
-    let topology = Topology::build(&mesh);
-    let weights = VertexWeights::uniform(mesh.n_vertices());
-    let fixed = vec![false; mesh.n_vertices()];
-    let voxel = spacing.map(|x| x as f32);
-    // Threshold 0 never stops a relaxation early, so every method runs all iterations.
-    let methods = [
+/// Every smoother with the bench's parameters; threshold 0 never stops a relaxation early, so
+/// each runs all its iterations.
+pub fn every_method(voxel: [f32; 3]) -> [crate::smooth::Method; 8] {
+    use crate::smooth::Method;
+    [
         Method::Laplace { lambda: 0.5 },
         Method::Taubin {
             lambda: 0.5,
@@ -298,7 +290,21 @@ pub fn smooth(triangles: usize, iterations: usize, repeat: usize) -> SmoothBench
             voxel,
             threshold: 0.0,
         },
-    ];
+    ]
+}
+
+/// Times every smoother for `iterations` iterations on the `big` phantom of about
+/// `triangles` triangles (relaxations run the full count, without stopping early), then the
+/// Hausdorff distance between the phantom and its smoothed version.
+pub fn smooth(triangles: usize, iterations: usize, repeat: usize) -> SmoothBench {
+    use crate::smooth::{smooth, Method};
+    use crate::weights::VertexWeights;
+    let (mesh, spacing) = big_mesh(triangles);
+    let topology = Topology::build(&mesh);
+    let weights = VertexWeights::uniform(mesh.n_vertices());
+    let fixed = vec![false; mesh.n_vertices()];
+    let voxel = spacing.map(|x| x as f32);
+    let methods = every_method(voxel);
     let mut smoothed = mesh.clone();
     let smoothers = methods
         .iter()

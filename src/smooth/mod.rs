@@ -570,35 +570,12 @@ mod tests {
             VertexWeights::new((0..n).map(|v| (v % 5) as f32 / 4.0).collect(), n).unwrap();
         let fixed: Vec<bool> = (0..mesh.n_vertices()).map(|v| v % 11 == 0).collect();
         let voxel = case.info.spacing_mm.map(|x| x as f32);
-        let methods = [
-            Method::Laplace { lambda: 0.5 },
-            Method::Taubin {
-                lambda: 0.5,
-                mu: -0.53,
-            },
-            Method::Npc { lambda: 0.5, voxel },
-            Method::Hc {
-                lambda: 0.5,
-                alpha: 0.1,
-                beta: 0.5,
-            },
-            Method::CellSize {
-                lambda: 1.0,
-                voxel,
-                threshold: 0.0,
-            },
-            Method::CellEdge {
-                lambda: 1.0,
-                voxel,
-                threshold: 0.0,
-            },
-            Method::Diamond {
-                lambda: 1.0,
-                voxel,
-                threshold: 0.0,
-            },
-        ];
-        for method in methods {
+        // Curvature flow always runs in the mesh's own numbering.
+        let methods = crate::bench::every_method(voxel);
+        for method in methods
+            .into_iter()
+            .filter(|m| !matches!(m, Method::Mcf { .. }))
+        {
             let (renumbered, stats) = smooth(&mesh, &topology, &method, 4, &weights, &fixed);
             let (scale, axes) = step_scales(&mesh, &topology, &method, &weights, &fixed);
             let (direct, iterations, last, _) = run_method(
