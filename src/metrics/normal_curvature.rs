@@ -72,6 +72,7 @@ pub struct TurnLimits<'a> {
 }
 
 impl<'a> TurnLimits<'a> {
+    /// Computes the face and vertex normals once, for any number of [`TurnLimits::within`].
     pub fn new(mesh: &'a Mesh, topology: &'a Topology) -> Self {
         Self {
             mesh,
@@ -87,66 +88,57 @@ impl<'a> TurnLimits<'a> {
     /// limit: below a limit by a margin far above rounding, tan(angle) (a ratio, an upper bound
     /// of the angle) already decides.
     pub fn within(&self, max_deg: f32, max_deg_per_mm: f32) -> Vec<bool> {
-        vertices_within(self, max_deg, max_deg_per_mm)
+        let (p, triangles) = (self.mesh.positions(), self.mesh.triangles());
+        // Limits in radians, less a relative margin of 1e-6 for the quick tests (which need a
+        // limit below 90 degrees and a face less than 90 degrees away).
+        let safe = 1.0 - 1e-6;
+        let max_rad = f64::from(max_deg).to_radians();
+        let quick_limit = max_rad * safe < std::f64::consts::FRAC_PI_2;
+        let tan_max = (max_rad * safe).tan();
+        let max_rate = f64::from(max_deg_per_mm).to_radians();
+        let within_deg = |angle: f64| (angle.to_degrees() as f32) <= max_deg;
+        let within_rate = |rate: f64| (rate.to_degrees() as f32) <= max_deg_per_mm;
+        (0..self.mesh.n_vertices())
+            .into_par_iter()
+            .map(|v| {
+                let n = self.vnormals[v];
+                if n == [0.0; 3] {
+                    return false;
+                }
+                let mut defined = false;
+                for &f in self.topology.vertex_faces(v) {
+                    let m = self.fnormals[f as usize];
+                    if m == [0.0; 3] {
+                        continue;
+                    }
+                    defined = true;
+                    let (sin, cos) = sin_cos_between(n, m);
+                    let quick = quick_limit && cos > 0.0;
+                    // Below the angle limit for certain when tan(angle) is below tan(limit).
+                    let angle = (!(quick && sin <= cos * tan_max)).then(|| sin.atan2(cos));
+                    if angle.is_some_and(|a| !within_deg(a)) {
+                        return false;
+                    }
+                    if max_deg_per_mm == f32::INFINITY {
+                        continue;
+                    }
+                    let distance = centroid_distance(p, triangles[f as usize], v);
+                    if distance <= 0.0 {
+                        // An infinite rate: within only an infinite limit.
+                        return false;
+                    }
+                    if quick && sin <= cos * max_rate * safe * distance {
+                        continue;
+                    }
+                    let a = angle.unwrap_or_else(|| sin.atan2(cos));
+                    if !within_rate(a / distance) {
+                        return false;
+                    }
+                }
+                defined
+            })
+            .collect()
     }
-}
-
-fn vertices_within(limits: &TurnLimits, max_deg: f32, max_deg_per_mm: f32) -> Vec<bool> {
-    let TurnLimits {
-        mesh,
-        topology,
-        fnormals,
-        vnormals,
-    } = limits;
-    let (p, triangles) = (mesh.positions(), mesh.triangles());
-    // Limits in radians, less a relative margin of 1e-6 for the quick test.
-    let safe = 1.0 - 1e-6;
-    let max_rad = f64::from(max_deg).to_radians();
-    let tan_max = (max_rad * safe).tan();
-    let max_rate = f64::from(max_deg_per_mm).to_radians();
-    let within_deg = |angle: f64| (angle.to_degrees() as f32) <= max_deg;
-    let within_rate = |rate: f64| (rate.to_degrees() as f32) <= max_deg_per_mm;
-    (0..mesh.n_vertices())
-        .into_par_iter()
-        .map(|v| {
-            let n = vnormals[v];
-            if n == [0.0; 3] {
-                return false;
-            }
-            let mut defined = false;
-            for &f in topology.vertex_faces(v) {
-                let m = fnormals[f as usize];
-                if m == [0.0; 3] {
-                    continue;
-                }
-                defined = true;
-                let (sin, cos) = sin_cos_between(n, m);
-                // Below the angle limit for certain when tan(angle) is below tan(limit).
-                let quick = cos > 0.0 && max_rad * safe < std::f64::consts::FRAC_PI_2;
-                let angle = (!(quick && sin <= cos * tan_max)).then(|| sin.atan2(cos));
-                if angle.is_some_and(|a| !within_deg(a)) {
-                    return false;
-                }
-                if max_deg_per_mm == f32::INFINITY {
-                    continue;
-                }
-                let t = triangles[f as usize];
-                let distance = centroid_distance(p, t, v);
-                if distance <= 0.0 {
-                    // An infinite rate: within only an infinite limit.
-                    return false;
-                }
-                if quick && sin <= cos * max_rate * safe * distance {
-                    continue;
-                }
-                let a = angle.unwrap_or_else(|| sin.atan2(cos));
-                if !within_rate(a / distance) {
-                    return false;
-                }
-            }
-            defined
-        })
-        .collect()
 }
 
 /// Mean normal curvature in degrees over the vertices where it is defined; 0 if none.
