@@ -20,6 +20,17 @@ pub fn destair(args: &[&str]) -> Output {
         .expect("run destair")
 }
 
+/// Runs the destair binary and asserts it succeeded (its stderr in the failure message).
+pub fn destair_ok(args: &[&str]) -> Output {
+    let out = destair(args);
+    assert!(
+        out.status.success(),
+        "destair {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
 /// Stderr of a run as text.
 pub fn stderr(out: &Output) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
@@ -57,7 +68,7 @@ skip = true
 /// tumor's reference (vein) is missing. Returns the config path.
 pub fn cohort(dir: &Path, n: usize, broken: bool) -> PathBuf {
     let cases = dir.join("cases");
-    let run = destair(&[
+    destair_ok(&[
         "phantom",
         "cohort",
         "--cases",
@@ -65,7 +76,6 @@ pub fn cohort(dir: &Path, n: usize, broken: bool) -> PathBuf {
         "--out",
         cases.to_str().unwrap(),
     ]);
-    assert!(run.status.success(), "{}", stderr(&run));
     if broken {
         let corrupt = cases.join("zz-corrupt");
         std::fs::create_dir_all(&corrupt).unwrap();

@@ -1,8 +1,7 @@
 //! End-to-end tests of the `destair` binary.
 
 use crate::common;
-
-use std::process::Command;
+use common::cohort::{destair, destair_ok};
 
 /// Asserts a run succeeded, showing its stderr if not.
 fn assert_ok(out: &std::process::Output) {
@@ -11,13 +10,6 @@ fn assert_ok(out: &std::process::Output) {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-}
-
-fn destair(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_destair"))
-        .args(args)
-        .output()
-        .expect("run destair")
 }
 
 #[test]
@@ -176,11 +168,7 @@ fn phantom_writes_meshes_and_description() {
 fn smooth_then_compare() {
     let dir = tempfile::tempdir().unwrap();
     let case = dir.path().join("neck");
-    assert!(
-        destair(&["phantom", "neck", "--out", case.to_str().unwrap()])
-            .status
-            .success()
-    );
+    destair_ok(&["phantom", "neck", "--out", case.to_str().unwrap()]);
     let tumor = case.join("tumor.ply");
     let vein = case.join("vein.ply");
     let out = dir.path().join("tumor-smooth.ply");
@@ -230,16 +218,14 @@ fn smooth_then_compare() {
     assert!(text.contains("property float weight") && text.contains("property float displacement"));
     // A rotated mesh has no reconstructable voxel size: constrained methods ask for --voxel.
     let rotated = dir.path().join("rot");
-    assert!(destair(&[
+    destair_ok(&[
         "phantom",
         "sphere-iso",
         "--rotate-x",
         "20",
         "--out",
-        rotated.to_str().unwrap()
-    ])
-    .status
-    .success());
+        rotated.to_str().unwrap(),
+    ]);
     let run = destair(&[
         "smooth",
         rotated.join("sphere.ply").to_str().unwrap(),
@@ -285,11 +271,7 @@ fn smooth_then_compare() {
 fn inspect_context_and_context_aware_smoothing() {
     let dir = tempfile::tempdir().unwrap();
     let an = dir.path().join("an");
-    assert!(
-        destair(&["phantom", "aneurysm", "--out", an.to_str().unwrap()])
-            .status
-            .success()
-    );
+    destair_ok(&["phantom", "aneurysm", "--out", an.to_str().unwrap()]);
     let mesh = an.join("aneurysm.ply");
     let export = dir.path().join("weights.ply");
     let out = destair(&[
@@ -386,13 +368,7 @@ fn inspect_context_and_context_aware_smoothing() {
 fn inspect_patches_names_the_inlet_and_fails_on_a_wrong_count() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path().to_str().unwrap();
-    assert_ok(&destair(&[
-        "phantom",
-        "aneurysm",
-        "--open-ends",
-        "--out",
-        d,
-    ]));
+    destair_ok(&["phantom", "aneurysm", "--open-ends", "--out", d]);
     let mesh = dir.path().join("aneurysm.ply");
     let m = mesh.to_str().unwrap();
 
@@ -564,12 +540,7 @@ fn smooth_with_the_cfd_profile_writes_checked_patch_files_with_planar_caps_and_e
 fn the_cfd_profile_refuses_a_vessel_that_smoothing_pinched() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    assert_ok(&destair(&[
-        "phantom",
-        "thin-vessel",
-        "--out",
-        d.to_str().unwrap(),
-    ]));
+    destair_ok(&["phantom", "thin-vessel", "--out", d.to_str().unwrap()]);
     let input = d.join("vessel.ply");
     let run = |method: &str, out: &str| {
         common::cohort::smooth(
@@ -605,12 +576,12 @@ fn the_cfd_profile_refuses_a_vessel_that_smoothing_pinched() {
 fn smooth_gives_the_cohort_runs_bytes_for_the_same_settings() {
     let dir = tempfile::tempdir().unwrap();
     let root = dir.path();
-    assert_ok(&destair(&[
+    destair_ok(&[
         "phantom",
         "cap-cylinder",
         "--out",
         root.join("phantom").to_str().unwrap(),
-    ]));
+    ]);
     std::fs::create_dir_all(root.join("cases/c1")).unwrap();
     let input = root.join("cases/c1/vessel.ply");
     std::fs::copy(root.join("phantom/cap-cylinder.ply"), &input).unwrap();
@@ -656,7 +627,7 @@ fn smooth_gives_the_cohort_runs_bytes_for_the_same_settings() {
         );
         let config_path = root.join(format!("c{i}.toml"));
         std::fs::write(&config_path, toml).unwrap();
-        assert_ok(&destair(&["run", config_path.to_str().unwrap()]));
+        destair_ok(&["run", config_path.to_str().unwrap()]);
         let single = root.join(format!("single{i}.ply"));
         let mut args = vec![
             "smooth",

@@ -4,7 +4,7 @@
 
 use crate::common;
 
-use common::cohort::{cohort, destair, smooth, stderr, CONFIG};
+use common::cohort::{cohort, destair, destair_ok, smooth, stderr, CONFIG};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -203,8 +203,7 @@ fn configs_that_cannot_work_are_refused_by_check_and_run() {
 fn check_prints_the_values_that_will_be_used() {
     let tmp = tempfile::tempdir().unwrap();
     let c = cohort(tmp.path(), 1, false);
-    let out = destair(&["check", c.to_str().unwrap()]);
-    assert!(out.status.success(), "{}", stderr(&out));
+    let out = destair_ok(&["check", c.to_str().unwrap()]);
     let text = stdout(&out);
     assert!(
         !text.contains("null") && !text.contains("cap_params"),
@@ -343,8 +342,7 @@ fn skipped_folders_and_duplicate_structures_are_reported() {
         ),
     )
     .unwrap();
-    let run = destair(&["run", c.to_str().unwrap()]);
-    assert!(run.status.success(), "{}", stderr(&run));
+    destair_ok(&["run", c.to_str().unwrap()]);
     let report = json(&dir.join("out/case-001/report.json"));
     let input = report["inputs"]
         .as_array()
@@ -365,16 +363,14 @@ fn one_mesh_commands_word_their_refusals() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
     let rotated = dir.join("rot");
-    assert!(destair(&[
+    destair_ok(&[
         "phantom",
         "sphere-aniso",
         "--rotate-x",
         "30",
         "--out",
-        rotated.to_str().unwrap()
-    ])
-    .status
-    .success());
+        rotated.to_str().unwrap(),
+    ]);
     let sphere = rotated.join("sphere.ply");
     let out_path = dir.join("x.ply");
     let run = smooth(&sphere, &out_path, "diamond", &[]);

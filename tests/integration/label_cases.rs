@@ -6,7 +6,7 @@
 
 use crate::common;
 
-use common::cohort::{destair, stderr};
+use common::cohort::{destair, destair_ok, stderr};
 use destair::io::{read_mesh, ReadOptions};
 use destair::volume::{nifti, nrrd, Grid, LabelVolume, Segment, Space};
 use std::path::{Path, PathBuf};
@@ -81,8 +81,7 @@ fn labels_become_structures_smoothed_with_the_header_geometry() {
     );
     let text = format!("{BASE}[[structure]]\npattern = \"label_3\"\nskip = true\n");
     let cfg = config(tmp.path(), &text);
-    let out = destair(&["run", cfg.to_str().unwrap()]);
-    assert!(out.status.success(), "{}", stderr(&out));
+    let out = destair_ok(&["run", cfg.to_str().unwrap()]);
     assert!(
         !stderr(&out).contains("matches no structure"),
         "{}",
@@ -156,7 +155,7 @@ fn labels_become_structures_smoothed_with_the_header_geometry() {
     }
     // Outputs are in world LPS: a skipped label is exactly what `destair extract` writes.
     let ex = tmp.path().join("extracted");
-    let run = destair(&[
+    destair_ok(&[
         "extract",
         tmp.path()
             .join("cases/oblique/segmentation.nii.gz")
@@ -169,7 +168,6 @@ fn labels_become_structures_smoothed_with_the_header_geometry() {
         "--surface",
         "binary",
     ]);
-    assert!(run.status.success(), "{}", stderr(&run));
     let opts = ReadOptions::default();
     let extracted = read_mesh(&ex.join("label_3.ply"), &opts).unwrap();
     let copied = read_mesh(&tmp.path().join("out/oblique/label_3.ply"), &opts).unwrap();
@@ -273,8 +271,7 @@ pattern = "liver"
 references = ["vein"]
 "#;
     let cfg = config(tmp.path(), text);
-    let out = destair(&["run", cfg.to_str().unwrap()]);
-    assert!(out.status.success(), "{}", stderr(&out));
+    destair_ok(&["run", cfg.to_str().unwrap()]);
     let r = report(tmp.path(), "a");
     assert_eq!(r["status"], "ok", "{r}");
     let names: Vec<&str> = r["structures"]
@@ -316,8 +313,7 @@ references = ["vein"]
         text.replace("2 = \"vein\"", "2 = \"vein\"\n7 = \"duct\""),
     )
     .unwrap();
-    let renamed = destair(&["run", cfg.to_str().unwrap()]);
-    assert!(renamed.status.success(), "{}", stderr(&renamed));
+    let renamed = destair_ok(&["run", cfg.to_str().unwrap()]);
     assert!(
         stderr(&renamed).contains("0 already done"),
         "{}",
@@ -426,7 +422,7 @@ fn combined_interfaces_carry_the_labels_of_both_sides() {
     write(&map, &nifti::encode(&volume, false).unwrap());
     let out_dir = tmp.path().join("meshes");
     let combined = tmp.path().join("all.ply");
-    let run = destair(&[
+    destair_ok(&[
         "extract",
         map.to_str().unwrap(),
         "--out",
@@ -434,7 +430,6 @@ fn combined_interfaces_carry_the_labels_of_both_sides() {
         "--combined",
         combined.to_str().unwrap(),
     ]);
-    assert!(run.status.success(), "{}", stderr(&run));
     // Parse the binary PLY by hand: x y z floats, then faces with two int properties.
     let bytes = std::fs::read(&combined).unwrap();
     let end = bytes
@@ -507,7 +502,7 @@ fn extract_constrained_surfaces_from_the_command_line() {
     phantom(&tmp.path().join("p"), &["--rotate-x", "15"]);
     let map = tmp.path().join("p/segmentation.nii.gz");
     let out = tmp.path().join("smooth");
-    let run = destair(&[
+    destair_ok(&[
         "extract",
         map.to_str().unwrap(),
         "--out",
@@ -515,7 +510,6 @@ fn extract_constrained_surfaces_from_the_command_line() {
         "--surface",
         "constrained",
     ]);
-    assert!(run.status.success(), "{}", stderr(&run));
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("extract.json")).unwrap()).unwrap();
     for l in report["labels"].as_array().unwrap() {
@@ -581,8 +575,7 @@ surface = "binary"
 "#
     );
     let cfg = config(tmp.path(), text);
-    let out = destair(&["run", cfg.to_str().unwrap()]);
-    assert!(out.status.success(), "{}", stderr(&out));
+    destair_ok(&["run", cfg.to_str().unwrap()]);
     let r = report(tmp.path(), "neck");
     assert_eq!(r["status"], "ok", "{r}");
     let tumor = structure(&r, "tumor");

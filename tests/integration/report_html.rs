@@ -4,7 +4,7 @@
 
 use crate::common;
 
-use common::cohort::{cohort, destair, stderr};
+use common::cohort::{cohort, destair, destair_ok, stderr};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -261,8 +261,7 @@ print(json.dumps({"points": m.GetNumberOfPoints(), "polys": m.GetNumberOfPolys()
 fn pictures_and_pages_turned_off_are_not_written_and_old_ones_go() {
     let t = tempfile::tempdir().unwrap();
     let config = cohort(t.path(), 1, false);
-    let run = destair(&["run", config.to_str().unwrap()]);
-    assert!(run.status.success(), "{}", stderr(&run));
+    destair_ok(&["run", config.to_str().unwrap()]);
     let out = t.path().join("out");
     let case = out.join("case-000");
     assert!(case.join("tumor_views.png").is_file() && case.join("report.html").is_file());
@@ -272,8 +271,7 @@ fn pictures_and_pages_turned_off_are_not_written_and_old_ones_go() {
         "root = \"out\"\npictures = false\nhtml = false",
     );
     std::fs::write(&config, text).unwrap();
-    let run = destair(&["run", config.to_str().unwrap()]);
-    assert!(run.status.success(), "{}", stderr(&run));
+    destair_ok(&["run", config.to_str().unwrap()]);
     assert!(
         !case.join("tumor_views.png").exists(),
         "stale picture removed"

@@ -3,7 +3,7 @@
 
 use crate::common;
 
-use common::cohort::{cohort, destair, snapshot};
+use common::cohort::{cohort, destair, destair_ok, snapshot};
 use std::process::Command;
 
 #[test]
@@ -82,21 +82,11 @@ fn two_shards_and_summarize_equal_one_run() {
     let tmp = tempfile::tempdir().unwrap();
     let config = cohort(tmp.path(), 8, false);
     let whole = tmp.path().join("whole");
-    let run = destair(&["run", config.to_str().unwrap()]);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    destair_ok(&["run", config.to_str().unwrap()]);
     std::fs::rename(tmp.path().join("out"), &whole).unwrap();
     for i in 0..2 {
         let shard = format!("{i}/2");
-        let run = destair(&["run", config.to_str().unwrap(), "--shard", &shard]);
-        assert!(
-            run.status.success(),
-            "{}",
-            String::from_utf8_lossy(&run.stderr)
-        );
+        destair_ok(&["run", config.to_str().unwrap(), "--shard", &shard]);
     }
     let out = tmp.path().join("out");
     assert!(
@@ -134,7 +124,7 @@ fn killed_runs_resume_to_the_same_bytes() {
     let tmp = tempfile::tempdir().unwrap();
     let config = cohort(tmp.path(), 12, false);
     let clean = tmp.path().join("clean");
-    assert!(destair(&["run", config.to_str().unwrap()]).status.success());
+    destair_ok(&["run", config.to_str().unwrap()]);
     std::fs::rename(tmp.path().join("out"), &clean).unwrap();
     let expected = snapshot(&clean);
     for delay_ms in [5u64, 30, 80, 150] {
@@ -147,12 +137,7 @@ fn killed_runs_resume_to_the_same_bytes() {
         std::thread::sleep(std::time::Duration::from_millis(delay_ms));
         let _ = child.kill(); // SIGKILL: nothing can be cleaned up.
         let _ = child.wait();
-        let rerun = destair(&["run", config.to_str().unwrap()]);
-        assert!(
-            rerun.status.success(),
-            "{}",
-            String::from_utf8_lossy(&rerun.stderr)
-        );
+        destair_ok(&["run", config.to_str().unwrap()]);
         // Temp files of writes cut short are cleared when their case is redone.
         let got = snapshot(&tmp.path().join("out"));
         assert_eq!(
@@ -212,7 +197,7 @@ fn usage_errors_exit_2() {
             .code(),
         Some(2)
     );
-    assert!(destair(&["check", good.to_str().unwrap()]).status.success());
+    destair_ok(&["check", good.to_str().unwrap()]);
 }
 
 #[test]
@@ -230,7 +215,7 @@ fn symlinked_inputs_as_nextflow_stages_them() {
     }
     let out = tmp.path().join("staged-out");
     for case in ["case-000", "case-001"] {
-        let run = destair(&[
+        destair_ok(&[
             "run-case",
             staged.join(case).to_str().unwrap(),
             "--config",
@@ -238,13 +223,8 @@ fn symlinked_inputs_as_nextflow_stages_them() {
             "--out",
             out.to_str().unwrap(),
         ]);
-        assert!(
-            run.status.success(),
-            "{}",
-            String::from_utf8_lossy(&run.stderr)
-        );
     }
-    assert!(destair(&["run", config.to_str().unwrap()]).status.success());
+    destair_ok(&["run", config.to_str().unwrap()]);
     let mut a = snapshot(&out);
     let b = snapshot(&tmp.path().join("out"));
     a.insert("summary.csv".into(), b["summary.csv"].clone());
@@ -265,12 +245,7 @@ fn outputs_inside_the_input_root_are_not_taken_for_cases() {
     )
     .unwrap();
     for _ in 0..2 {
-        let run = destair(&["run", config.to_str().unwrap()]);
-        assert!(
-            run.status.success(),
-            "{}",
-            String::from_utf8_lossy(&run.stderr)
-        );
+        destair_ok(&["run", config.to_str().unwrap()]);
         let list = destair(&["list", config.to_str().unwrap()]);
         let ids: Vec<String> = String::from_utf8_lossy(&list.stdout)
             .lines()
@@ -303,7 +278,7 @@ fn patterns_select_meshes_and_naming_names_outputs() {
     .unwrap();
     let list = destair(&["list", config.to_str().unwrap()]);
     assert!(String::from_utf8_lossy(&list.stdout).contains("\ttumor,vein\n"));
-    assert!(destair(&["run", config.to_str().unwrap()]).status.success());
+    destair_ok(&["run", config.to_str().unwrap()]);
     let case = tmp.path().join("out/case-001");
     assert!(case.join("case-001_tumor_smooth.ply").is_file());
     assert!(!case.join("case-001_trachea_smooth.ply").exists());
@@ -504,7 +479,7 @@ skip = true
 "#,
     )
     .unwrap();
-    assert!(destair(&["run", config.to_str().unwrap()]).status.success());
+    destair_ok(&["run", config.to_str().unwrap()]);
     let out = tmp.path().join("out/neck");
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
@@ -580,11 +555,7 @@ fn the_guard_keeps_the_gap_repairs_locally_and_fails_what_it_cannot_repair() {
     use destair::spatial::TriangleGrid;
     let tmp = tempfile::tempdir().unwrap();
     let case = tmp.path().join("cases/g");
-    assert!(
-        destair(&["phantom", "neck-groove", "--out", case.to_str().unwrap()])
-            .status
-            .success()
-    );
+    destair_ok(&["phantom", "neck-groove", "--out", case.to_str().unwrap()]);
     let run = |name: &str, guard: &str| {
         let config = tmp.path().join(format!("{name}.toml"));
         std::fs::write(

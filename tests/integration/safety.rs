@@ -6,7 +6,7 @@
 
 use crate::common;
 
-use common::cohort::{cohort, destair, smooth, snapshot, stderr, write_config};
+use common::cohort::{cohort, destair, destair_ok, smooth, snapshot, stderr, write_config};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -152,14 +152,13 @@ fn smooth_and_export_refuse_to_overwrite_their_input() {
 
 /// A cohort whose one big case keeps a run busy for a long time (huge iteration count).
 fn slow_cohort(dir: &Path, triangles: u64, iterations: usize) -> PathBuf {
-    let run = destair(&[
+    destair_ok(&[
         "phantom",
         "big",
         &triangles.to_string(),
         "--out",
         dir.join("cases/big").to_str().unwrap(),
     ]);
-    assert!(run.status.success(), "{}", stderr(&run));
     write_config(
         dir,
         "slow.toml",
@@ -214,8 +213,7 @@ fn one_run_at_a_time_per_output_folder() {
         "slow.toml",
         "[input]\nroots = [\"cases\"]\ncase_depth = 1\n[output]\nroot = \"out\"\n[defaults]\nmethod = \"laplace\"\niterations = 1\nstaircase = false\n",
     );
-    let run = destair(&["run", quick.to_str().unwrap(), "--wait"]);
-    assert!(run.status.success(), "{}", stderr(&run));
+    destair_ok(&["run", quick.to_str().unwrap(), "--wait"]);
 }
 
 #[test]
@@ -225,7 +223,7 @@ fn concurrent_shards_and_run_case_share_an_output_folder() {
     let c = cohort(dir, 8, false);
     let c = c.to_str().unwrap();
     let clean = {
-        assert!(destair(&["run", c]).status.success());
+        destair_ok(&["run", c]);
         let s = snapshot(&dir.join("out"));
         std::fs::remove_dir_all(dir.join("out")).unwrap();
         s
@@ -249,13 +247,12 @@ fn concurrent_shards_and_run_case_share_an_output_folder() {
         let status = ch.wait().unwrap();
         assert!(status.success(), "{status:?}");
     }
-    let sum = destair(&[
+    destair_ok(&[
         "summarize",
         dir.join("out").to_str().unwrap(),
         "--config",
         c,
     ]);
-    assert!(sum.status.success(), "{}", stderr(&sum));
     assert!(
         snapshot(&dir.join("out")) == clean,
         "concurrent shards differ from one run"
@@ -268,7 +265,7 @@ fn stale_temp_files_go_and_outputs_no_longer_made_are_removed() {
     let dir = tmp.path();
     let c = cohort(dir, 3, false);
     let c_str = c.to_str().unwrap();
-    assert!(destair(&["run", c_str]).status.success());
+    destair_ok(&["run", c_str]);
     let case = dir.join("out/case-001");
     // A temp file of a write cut short by kill -9 in a case that is done.
     std::fs::write(case.join(".destair-AbC123.tmp"), vec![0u8; 1000]).unwrap();
@@ -285,7 +282,7 @@ fn stale_temp_files_go_and_outputs_no_longer_made_are_removed() {
         common::cohort::CONFIG.replace("formats = [\"ply\", \"stl\"]", "formats = [\"ply\"]"),
     )
     .unwrap();
-    assert!(destair(&["run", c_str]).status.success());
+    destair_ok(&["run", c_str]);
     assert!(case.join("tumor.ply").is_file() && !case.join("tumor.stl").exists());
     std::fs::write(
         &c,
@@ -295,7 +292,7 @@ fn stale_temp_files_go_and_outputs_no_longer_made_are_removed() {
         ),
     )
     .unwrap();
-    assert!(destair(&["run", c_str]).status.success());
+    destair_ok(&["run", c_str]);
     let names: Vec<String> = std::fs::read_dir(&case)
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
@@ -320,20 +317,18 @@ fn stale_temp_files_go_and_outputs_no_longer_made_are_removed() {
         "{}",
         stderr(&run)
     );
-    let sum = destair(&[
+    let sum = destair_ok(&[
         "summarize",
         dir.join("out").to_str().unwrap(),
         "--config",
         c_str,
     ]);
-    assert!(sum.status.success(), "{}", stderr(&sum));
     assert!(String::from_utf8_lossy(&sum.stdout).contains("not in the cohort: case-002"));
     let summary: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.join("out/summary.json")).unwrap()).unwrap();
     assert_eq!(summary["n_cases"], 2);
     assert!(dir.join("out/case-002").exists());
-    let run = destair(&["run", c_str, "--prune"]);
-    assert!(run.status.success(), "{}", stderr(&run));
+    destair_ok(&["run", c_str, "--prune"]);
     assert!(!dir.join("out/case-002").exists());
     assert!(
         destair(&["run", c_str, "--prune", "--shard", "0/2"])
@@ -349,7 +344,7 @@ fn sigterm_ends_a_run_within_a_second_whatever_the_case_size() {
     let dir = tmp.path();
     // First a quick run, whose outputs a stopped run must leave as they are.
     let c = slow_cohort(dir, 400_000, 1);
-    assert!(destair(&["run", c.to_str().unwrap()]).status.success());
+    destair_ok(&["run", c.to_str().unwrap()]);
     let before = snapshot(&dir.join("out"));
     let c = slow_cohort(dir, 400_000, 100_000);
     for delay_ms in [300u64, 1500, 3000] {
@@ -611,7 +606,7 @@ fn randomized_soak_keeps_inputs_and_ends_with_clean_run_bytes() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
     let c = cohort(dir, 4, false);
-    assert!(destair(&["run", c.to_str().unwrap()]).status.success());
+    destair_ok(&["run", c.to_str().unwrap()]);
     let clean = snapshot(&dir.join("out"));
     std::fs::remove_dir_all(dir.join("out")).unwrap();
     let inputs = hashes(&dir.join("cases"));
@@ -745,8 +740,7 @@ fn randomized_soak_keeps_inputs_and_ends_with_clean_run_bytes() {
             .status()
             .unwrap();
         assert!(remount.success());
-        let run = destair(&["run", soak_config(dir, "cases", "full").to_str().unwrap()]);
-        assert!(run.status.success(), "{}", stderr(&run));
+        destair_ok(&["run", soak_config(dir, "cases", "full").to_str().unwrap()]);
         let got = snapshot(&full);
         umount(&full);
         assert!(
@@ -754,8 +748,7 @@ fn randomized_soak_keeps_inputs_and_ends_with_clean_run_bytes() {
             "the once-full output folder differs from a clean run"
         );
     }
-    let run = destair(&["run", c.to_str().unwrap()]);
-    assert!(run.status.success(), "{}", stderr(&run));
+    destair_ok(&["run", c.to_str().unwrap()]);
     let got = snapshot(&dir.join("out"));
     assert_eq!(
         got.keys().collect::<Vec<_>>(),
