@@ -224,7 +224,7 @@ pub struct SmoothBench {
     pub copy_gb_per_s: f64,
     pub laplace_bound_s: f64,
     /// Symmetric Hausdorff distance between the phantom and its Laplace-smoothed version,
-    /// including building both triangle grids (seconds).
+    /// including building both indexes (seconds).
     pub hausdorff_s: f64,
     /// Point-to-surface queries per second within that measurement.
     pub hausdorff_queries_per_s: f64,
@@ -391,8 +391,8 @@ pub struct ContextBench {
     pub stack_axis_s: f64,
     pub staircase_weights_s: f64,
     pub caps_s: f64,
-    /// Building the triangle grid over the reference (s).
-    pub grid_build_s: f64,
+    /// Building the index over the reference: its cells and its hierarchy (s).
+    pub tree_build_s: f64,
     pub n_queries: usize,
     /// Exact point-to-surface queries near the surface (face centroids moved 1.5 mm along x;
     /// s) and their rate.
@@ -410,7 +410,7 @@ pub struct ContextBench {
 /// against the same mesh as a reference.
 pub fn context(triangles: usize, repeat: usize) -> ContextBench {
     use crate::analysis::{detect_caps, stack_axis, CapParams, StackAxisParams};
-    use crate::spatial::TriangleGrid;
+    use crate::spatial::TriangleBvh;
     use crate::weights::{staircase_weights, StaircaseParams};
     let (mesh, _) = big_mesh(triangles);
     let (topology_s, topology) = best_of(repeat, || Topology::build(&mesh));
@@ -429,7 +429,11 @@ pub fn context(triangles: usize, repeat: usize) -> ContextBench {
     let (caps_s, _) = best_of(repeat, || {
         detect_caps(&mesh, &topology, Some(&reach), &CapParams::default())
     });
-    let (grid_build_s, grid) = best_of(repeat, || TriangleGrid::build(&mesh));
+    let (tree_build_s, tree) = best_of(repeat, || {
+        let tree = TriangleBvh::build(&mesh);
+        tree.build_hierarchy();
+        tree
+    });
     let p = mesh.positions();
     let queries: Vec<[f32; 3]> = mesh
         .triangles()
@@ -441,7 +445,7 @@ pub fn context(triangles: usize, repeat: usize) -> ContextBench {
             [c[0] + 1.5, c[1], c[2]]
         })
         .collect();
-    let (queries_s, _) = best_of(repeat, || grid.distances(&queries));
+    let (queries_s, _) = best_of(repeat, || tree.distances(&queries));
     let normals = crate::mesh::geometry::face_normals(&mesh);
     let far: Vec<[f32; 3]> = mesh
         .triangles()
@@ -454,7 +458,7 @@ pub fn context(triangles: usize, repeat: usize) -> ContextBench {
             })
         })
         .collect();
-    let (far_queries_s, far_distances) = best_of(repeat, || grid.distances(&far));
+    let (far_queries_s, far_distances) = best_of(repeat, || tree.distances(&far));
     let finite: Vec<f64> = far_distances
         .into_iter()
         .filter(|d| d.is_finite())
@@ -467,7 +471,7 @@ pub fn context(triangles: usize, repeat: usize) -> ContextBench {
         stack_axis_s,
         staircase_weights_s,
         caps_s,
-        grid_build_s,
+        tree_build_s,
         n_queries: queries.len(),
         queries_s,
         queries_per_s: queries.len() as f64 / queries_s,

@@ -53,10 +53,10 @@ pub struct Narrowing {
     pub at_mm: [f32; 3],
 }
 
-/// What finding a vertex's opposite wall needs: the faces in a grid, face and vertex normals.
+/// What finding a vertex's opposite wall needs: the faces in a tree, face and vertex normals.
 struct OppositeWall<'a> {
     mesh: &'a Mesh,
-    grid: crate::spatial::TriangleGrid,
+    tree: crate::spatial::TriangleBvh,
     faces: Vec<[f32; 3]>,
     normals: Vec<[f32; 3]>,
     /// -1 when the faces' normals point out of the fluid (as they should), else 1.
@@ -68,7 +68,7 @@ impl<'a> OppositeWall<'a> {
         use crate::mesh::geometry::{face_normals, vertex_normals};
         OppositeWall {
             mesh,
-            grid: crate::spatial::TriangleGrid::build(mesh),
+            tree: crate::spatial::TriangleBvh::build(mesh),
             faces: face_normals(mesh),
             normals: vertex_normals(mesh, topology),
             inward: if signed_volume(mesh) < 0.0 { 1.0 } else { -1.0 },
@@ -90,7 +90,7 @@ impl<'a> OppositeWall<'a> {
             if d <= 0.5 {
                 return false;
             }
-            let t = self.grid.triangle(f);
+            let t = self.tree.triangle(f);
             t.iter().any(|c| {
                 (c[0] as f64 - x[0]) * n[0]
                     + (c[1] as f64 - x[1]) * n[1]
@@ -98,7 +98,7 @@ impl<'a> OppositeWall<'a> {
                     > 0.0
             })
         };
-        self.grid
+        self.tree
             .nearest_matching_within(p, within, facing_back)
             .map(|near| near.distance)
     }

@@ -13,7 +13,7 @@ use super::rims::{smooth_rims, RimSmoothing};
 use crate::mesh::{Mesh, Topology};
 use crate::metrics::distance::surface_distance;
 use crate::remesh::{remesh, EdgeTarget, RemeshError, RemeshParams};
-use crate::spatial::TriangleGrid;
+use crate::spatial::TriangleBvh;
 use serde::Serialize;
 use std::borrow::Cow;
 use thiserror::Error;
@@ -246,9 +246,9 @@ pub fn finish_surface(
             let seconds = started.elapsed().as_secs_f64();
             let distance = surface_distance(
                 &r.mesh,
-                &TriangleGrid::build(&r.mesh),
+                &TriangleBvh::build(&r.mesh),
                 &mesh,
-                &TriangleGrid::build(&mesh),
+                &TriangleBvh::build(&mesh),
             );
             let summary = RemeshSummary {
                 splits: r.splits,

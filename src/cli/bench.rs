@@ -93,7 +93,10 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
             println!("  stack axis         {:.4} s", r.stack_axis_s);
             println!("  staircase weights  {:.4} s", r.staircase_weights_s);
             println!("  caps               {:.4} s", r.caps_s);
-            println!("  triangle grid      {:.4} s", r.grid_build_s);
+            println!(
+                "  triangle index     {:.4} s  (cells and hierarchy)",
+                r.tree_build_s
+            );
             println!(
                 "  {} exact queries  {:.4} s  ({:.2} M queries/s), 1.5 mm off the surface",
                 r.n_queries,
@@ -150,7 +153,7 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
                 r.laplace_bound_s, r.copy_gb_per_s
             );
             println!(
-                "  hausdorff  {:.4} s  ({:.2} M point-to-surface queries/s, grids included)",
+                "  hausdorff  {:.4} s  ({:.2} M point-to-surface queries/s, indexes included)",
                 r.hausdorff_s,
                 r.hausdorff_queries_per_s / 1e6
             );

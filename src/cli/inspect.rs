@@ -137,8 +137,8 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     let topology = destair::Topology::build(&loaded.mesh);
     let report = destair::report::inspect::inspect(&mesh, &loaded, &topology);
     let analysis = if context || export.is_some() {
-        let grids = ctx.reference_grids()?;
-        let refs: Vec<&destair::spatial::TriangleGrid> = grids.iter().collect();
+        let trees = ctx.reference_trees()?;
+        let refs: Vec<&destair::spatial::TriangleBvh> = trees.iter().collect();
         Some(destair::weights::context_weights(
             &loaded.mesh,
             &topology,

@@ -284,12 +284,12 @@ impl ContextArgs {
     }
 
     /// Reads the reference meshes and indexes their triangles.
-    pub fn reference_grids(&self) -> anyhow::Result<Vec<destair::spatial::TriangleGrid>> {
+    pub fn reference_trees(&self) -> anyhow::Result<Vec<destair::spatial::TriangleBvh>> {
         self.references
             .iter()
             .map(|p| {
                 let r = read_input(p, &ReadOptions::default())?;
-                Ok(destair::spatial::TriangleGrid::build(&r.mesh))
+                Ok(destair::spatial::TriangleBvh::build(&r.mesh))
             })
             .collect()
     }

@@ -252,8 +252,8 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     // `--caps` says, distances when references are given.
     let weights = match weights {
         None => {
-            let grids = ctx.reference_grids()?;
-            let refs: Vec<&destair::spatial::TriangleGrid> = grids.iter().collect();
+            let trees = ctx.reference_trees()?;
+            let refs: Vec<&destair::spatial::TriangleBvh> = trees.iter().collect();
             let analysis =
                 destair::weights::context_weights(mesh, &topology, &ctx.params(staircase), &refs);
             let summary = destair::report::inspect::context_summary(&analysis, mesh.n_vertices());

@@ -8,7 +8,7 @@ use crate::mesh::geometry::bounding_box;
 use crate::mesh::Mesh;
 use crate::metrics::minimum_distance;
 use crate::spatial::intersect::{mesh_intersections, meshes_touch, self_intersections};
-use crate::spatial::TriangleGrid;
+use crate::spatial::TriangleBvh;
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -154,7 +154,7 @@ impl GuardPolicy {
 pub fn vertices_near(
     mesh: &Mesh,
     topology: &crate::mesh::Topology,
-    other: &TriangleGrid,
+    other: &TriangleBvh,
     within: f64,
     rings: usize,
 ) -> Vec<bool> {
@@ -193,11 +193,11 @@ fn unchanged(s: &Surface) -> bool {
 }
 
 /// Minimum distance of two meshes, 0 when they touch or cross.
-fn measure(a: &Mesh, grid_a: &TriangleGrid, b: &Mesh, grid_b: &TriangleGrid) -> f64 {
+fn measure(a: &Mesh, tree_a: &TriangleBvh, b: &Mesh, tree_b: &TriangleBvh) -> f64 {
     if meshes_touch(a, b) {
         0.0
     } else {
-        minimum_distance(a, grid_a, b, grid_b)
+        minimum_distance(a, tree_a, b, tree_b)
     }
 }
 
@@ -240,8 +240,8 @@ fn table_reusing(
             }
         }
     }
-    // Pairs that must be measured again (a side changed, or no row to reuse), and grids only
-    // for their structures (after = before for skipped ones, one grid).
+    // Pairs that must be measured again (a side changed, or no row to reuse), and trees only
+    // for their structures (after = before for skipped ones, one tree).
     let remeasure = |i: usize, j: usize| {
         let (a, b) = (surfaces[i].name, surfaces[j].name);
         changed(a) || changed(b) || old_row(a, b).is_none()
@@ -253,21 +253,18 @@ fn table_reusing(
             needed[j] = true;
         }
     }
-    let grids: Vec<Option<(TriangleGrid, Option<TriangleGrid>)>> = surfaces
+    let trees: Vec<Option<(TriangleBvh, Option<TriangleBvh>)>> = surfaces
         .par_iter()
         .zip(&needed)
         .map(|(s, &need)| {
             need.then(|| {
-                let before = TriangleGrid::build(s.before);
-                (
-                    before,
-                    (!unchanged(s)).then(|| TriangleGrid::build(s.after)),
-                )
+                let before = TriangleBvh::build(s.before);
+                (before, (!unchanged(s)).then(|| TriangleBvh::build(s.after)))
             })
         })
         .collect();
-    let grid = |i: usize, after: bool| {
-        let (before, moved) = grids[i].as_ref().expect("grid built for near pairs");
+    let tree = |i: usize, after: bool| {
+        let (before, moved) = trees[i].as_ref().expect("tree built for near pairs");
         if after {
             moved.as_ref().unwrap_or(before)
         } else {
@@ -284,7 +281,7 @@ fn table_reusing(
             }
             let before = match old {
                 Some(row) => row.min_distance_before_mm,
-                None => measure(s.before, grid(i, false), t.before, grid(j, false)),
+                None => measure(s.before, tree(i, false), t.before, tree(j, false)),
             };
             // Structures that touch already (labels sharing an interface) cannot touch anew
             // nor lose a gap: their "after" is not measured.
@@ -301,7 +298,7 @@ fn table_reusing(
                     new_contact: false,
                 };
             }
-            let after = measure(s.after, grid(i, true), t.after, grid(j, true));
+            let after = measure(s.after, tree(i, true), t.after, tree(j, true));
             // A new contact: how many triangle pairs meet, for the message.
             let new_pairs = if after == 0.0 {
                 mesh_intersections(s.after, t.after).len()

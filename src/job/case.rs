@@ -16,7 +16,7 @@ use crate::report::case::{CaseReport, CfdReport, InputInfo, StructureReport, SCH
 use crate::report::compare::compare_prepared;
 use crate::report::inspect::context_summary;
 use crate::smooth::{boundary_vertices, smooth};
-use crate::spatial::TriangleGrid;
+use crate::spatial::TriangleBvh;
 use crate::weights::{context_weights, AxisChoice};
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -187,7 +187,7 @@ fn encode(
 /// Processes every structure of a loaded case.
 pub fn process_case(plan: &Plan, case: LoadedCase) -> CaseOutput {
     let started = Instant::now();
-    let mut grids: BTreeMap<(String, Option<usize>), TriangleGrid> = BTreeMap::new();
+    let mut trees: BTreeMap<(String, Option<usize>), TriangleBvh> = BTreeMap::new();
     let mut files = Vec::new();
     let mut structures = Vec::new();
     let mut timings = serde_json::Map::new();
@@ -267,7 +267,7 @@ pub fn process_case(plan: &Plan, case: LoadedCase) -> CaseOutput {
             &case.input.id,
             f,
             &by_name,
-            &mut grids,
+            &mut trees,
             None,
             &files,
             &mut kept,
@@ -292,7 +292,7 @@ pub fn process_case(plan: &Plan, case: LoadedCase) -> CaseOutput {
                 &case.input.id,
                 &inputs[input],
                 &by_name,
-                &mut grids,
+                &mut trees,
                 Some(held),
                 files,
                 kept,
@@ -373,7 +373,7 @@ fn run_structure(
     case_id: &str,
     f: &LoadedFile,
     by_name: &BTreeMap<&str, &LoadedFile>,
-    grids: &mut BTreeMap<(String, Option<usize>), TriangleGrid>,
+    trees: &mut BTreeMap<(String, Option<usize>), TriangleBvh>,
     held: Option<&[bool]>,
     files: &[(String, Vec<u8>)],
     kept: &mut Vec<Kept>,
@@ -406,7 +406,7 @@ fn run_structure(
         &stem,
         &settings,
         by_name,
-        grids,
+        trees,
         &mut report,
         &mut surface,
         held,
@@ -487,7 +487,7 @@ fn process_structure(
     stem: &str,
     settings: &StructureSettings,
     case: &BTreeMap<&str, &LoadedFile>,
-    grids: &mut BTreeMap<(String, Option<usize>), TriangleGrid>,
+    trees: &mut BTreeMap<(String, Option<usize>), TriangleBvh>,
     report: &mut StructureReport,
     surfaces: &mut Option<Surfaces>,
     held: Option<&[bool]>,
@@ -626,12 +626,12 @@ fn process_structure(
         .build(&settings.params, voxel.unwrap_or([1.0; 3]));
     for (name, rm) in &reference_meshes {
         let key = (name.clone(), frame_key);
-        grids.entry(key).or_insert_with(|| TriangleGrid::build(rm));
+        trees.entry(key).or_insert_with(|| TriangleBvh::build(rm));
     }
-    let refs: Vec<&TriangleGrid> = settings
+    let refs: Vec<&TriangleBvh> = settings
         .references
         .iter()
-        .filter_map(|r| grids.get(&(r.clone(), frame_key)))
+        .filter_map(|r| trees.get(&(r.clone(), frame_key)))
         .collect();
     // A constrained label surface is smooth and true to its voxels already: a mesh smoother
     // runs on it only when `method` is configured.
@@ -693,10 +693,10 @@ fn process_structure(
     let before = file.binary.as_ref().unwrap_or(mesh);
     let mut smoothed = mesh.clone();
     smoothed.positions_mut().copy_from_slice(&positions);
-    let named_refs: Vec<(&str, &Mesh, &TriangleGrid)> = reference_meshes
+    let named_refs: Vec<(&str, &Mesh, &TriangleBvh)> = reference_meshes
         .iter()
         .filter_map(|(n, m)| {
-            grids
+            trees
                 .get(&(n.clone(), frame_key))
                 .map(|g| (n.as_str(), m.as_ref(), g))
         })

@@ -6,7 +6,7 @@ use crate::guard::{
 };
 use crate::mesh::{Mesh, Topology};
 use crate::report::case::StructureReport;
-use crate::spatial::TriangleGrid;
+use crate::spatial::TriangleBvh;
 use std::collections::BTreeMap;
 
 /// Output files of a case: (name within its folder, bytes).
@@ -89,9 +89,9 @@ pub(super) fn guard_case(
                 if !kept[i].repairable {
                     continue;
                 }
-                let grid = TriangleGrid::build(&kept[j].after);
+                let tree = TriangleBvh::build(&kept[j].after);
                 let topology = Topology::build(&kept[i].after);
-                let near = vertices_near(&kept[i].after, &topology, &grid, *gap, 2);
+                let near = vertices_near(&kept[i].after, &topology, &tree, *gap, 2);
                 let mask = held
                     .entry(kept[i].input)
                     .or_insert_with(|| vec![false; near.len()]);
@@ -173,7 +173,7 @@ fn closest_place(a: &Mesh, b: &Mesh) -> [f32; 3] {
         let t = a.triangles()[f as usize];
         return std::array::from_fn(|k| t.iter().map(|&v| p[v as usize][k]).sum::<f32>() / 3.0);
     }
-    let d = TriangleGrid::build(b).distances(p);
+    let d = TriangleBvh::build(b).distances(p);
     (0..p.len())
         .min_by(|&i, &j| d[i].total_cmp(&d[j]))
         .map_or([f32::NAN; 3], |i| p[i])

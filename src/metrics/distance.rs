@@ -4,7 +4,7 @@
 
 use crate::mesh::Mesh;
 use crate::parallel::deterministic_sum;
-use crate::spatial::TriangleGrid;
+use crate::spatial::TriangleBvh;
 use serde::Serialize;
 
 /// How far two surfaces are apart, measured from each one's vertices to the other's triangles.
@@ -27,15 +27,15 @@ fn max_and_sum(d: &[f64]) -> (f64, f64) {
 }
 
 /// Symmetric Hausdorff and mean minimum distances between `a` and `b` (vertex to surface).
-/// Pass prebuilt grids to reuse them across calls.
+/// Pass prebuilt trees to reuse them across calls.
 pub fn surface_distance(
     a: &Mesh,
-    grid_a: &TriangleGrid,
+    tree_a: &TriangleBvh,
     b: &Mesh,
-    grid_b: &TriangleGrid,
+    tree_b: &TriangleBvh,
 ) -> SurfaceDistance {
-    let ab = grid_b.distances(a.positions());
-    let ba = grid_a.distances(b.positions());
+    let ab = tree_b.distances(a.positions());
+    let ba = tree_a.distances(b.positions());
     let (ab_max, ab_sum) = max_and_sum(&ab);
     let (ba_max, ba_sum) = max_and_sum(&ba);
     let mean = |sum: f64, n: usize| if n == 0 { 0.0 } else { sum / n as f64 };
@@ -49,9 +49,9 @@ pub fn surface_distance(
     }
 }
 
-/// Symmetric Hausdorff distance (mm) between two meshes, building the grids.
+/// Symmetric Hausdorff distance (mm) between two meshes, building the trees.
 pub fn hausdorff_distance(a: &Mesh, b: &Mesh) -> f64 {
-    surface_distance(a, &TriangleGrid::build(a), b, &TriangleGrid::build(b)).hausdorff_mm
+    surface_distance(a, &TriangleBvh::build(a), b, &TriangleBvh::build(b)).hausdorff_mm
 }
 
 /// Minimum distance (mm) between a structure and a reference: the smaller of the closest
@@ -59,37 +59,37 @@ pub fn hausdorff_distance(a: &Mesh, b: &Mesh) -> f64 {
 /// crossing at a distance, where it can exceed the true value by a fraction of an edge).
 pub fn minimum_distance(
     mesh: &Mesh,
-    mesh_grid: &TriangleGrid,
+    mesh_tree: &TriangleBvh,
     reference: &Mesh,
-    reference_grid: &TriangleGrid,
+    reference_tree: &TriangleBvh,
 ) -> f64 {
     // An upper bound from a sample of vertices, then every vertex searched only within the
-    // best distance so far: a search from a far vertex ends after a ring or two. The minimum
+    // best distance so far: a search from a far vertex ends a few nodes down. The minimum
     // of exact distances does not depend on the order, so the result is the full search's.
-    let sample = |points: &[[f32; 3]], grid: &TriangleGrid| {
+    let sample = |points: &[[f32; 3]], tree: &TriangleBvh| {
         let step = (points.len() / 64).max(1);
         points
             .iter()
             .step_by(step)
-            .filter_map(|&p| grid.nearest(p).map(|n| n.distance))
+            .filter_map(|&p| tree.nearest(p).map(|n| n.distance))
             .fold(f64::INFINITY, f64::min)
     };
     let bound =
-        sample(mesh.positions(), reference_grid).min(sample(reference.positions(), mesh_grid));
-    let a = smallest_distance_within(reference_grid, mesh.positions(), bound);
-    smallest_distance_within(mesh_grid, reference.positions(), a)
+        sample(mesh.positions(), reference_tree).min(sample(reference.positions(), mesh_tree));
+    let a = smallest_distance_within(reference_tree, mesh.positions(), bound);
+    smallest_distance_within(mesh_tree, reference.positions(), a)
 }
 
-/// The smallest distance from `points` to the surface of `grid` if it is at most `bound`,
+/// The smallest distance from `points` to the surface of `tree` if it is at most `bound`,
 /// else `bound`; in parallel, each chunk narrowing its search as it finds closer points.
-fn smallest_distance_within(grid: &TriangleGrid, points: &[[f32; 3]], bound: f64) -> f64 {
+fn smallest_distance_within(tree: &TriangleBvh, points: &[[f32; 3]], bound: f64) -> f64 {
     use rayon::prelude::*;
     points
         .par_chunks(4096)
         .map(|chunk| {
             let mut best = bound;
             for &p in chunk {
-                if let Some(n) = grid.nearest_matching_within(p, best, |_| true) {
+                if let Some(n) = tree.nearest_matching_within(p, best, |_| true) {
                     best = best.min(n.distance);
                 }
             }
@@ -124,7 +124,7 @@ mod tests {
             let (na, nb) = (1 + rng.usize(..3000), 1 + rng.usize(..3000));
             let a = soup(&mut rng, na, [0.0; 3]);
             let b = soup(&mut rng, nb, [gap, 0.5 * gap, 0.0]);
-            let (ga, gb) = (TriangleGrid::build(&a), TriangleGrid::build(&b));
+            let (ga, gb) = (TriangleBvh::build(&a), TriangleBvh::build(&b));
             let full = gb
                 .distances(a.positions())
                 .into_iter()

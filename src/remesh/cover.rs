@@ -7,7 +7,7 @@
 use super::halfedge::{next, NONE};
 use super::{dist, dot, min_angle, tri_normal, unit, Kind, Remesher};
 use crate::mesh::{Mesh, Topology};
-use crate::spatial::{closest_point_and_region, TriangleGrid, TriangleRegion};
+use crate::spatial::{closest_point_and_region, TriangleBvh, TriangleRegion};
 use rayon::prelude::*;
 
 /// Input vertices further than this share of their target from the remeshed surface get a
@@ -94,7 +94,7 @@ impl Remesher {
     /// remeshed surface: (excess mm, input vertex, remeshed face nearest it). The distance is
     /// found by walking the remeshed surface from a remeshed vertex projected near the input
     /// vertex (a walk ends at a local nearest face, so it may only overstate the distance);
-    /// input vertices with no remeshed vertex within two rings ask a grid over the result.
+    /// input vertices with no remeshed vertex within two rings ask a tree over the result.
     fn standing_off(
         &self,
         p: &[[f32; 3]],
@@ -121,7 +121,7 @@ impl Remesher {
             let e = d - STAND_OFF * size[x as usize];
             (e > 0.0).then_some(e)
         };
-        // Walked where a start is near; `None` marks the input vertices left to the grid.
+        // Walked where a start is near; `None` marks the input vertices left to the tree.
         let walked: Vec<Option<(f64, u32, u32)>> = (0..p.len() as u32)
             .into_par_iter()
             .map_init(Vec::new, |ring, x| {
@@ -141,7 +141,7 @@ impl Remesher {
                             .map(near),
                     )
                     .find(|&v| v != NONE);
-                let v = start?; // none near: left to the grid
+                let v = start?; // none near: left to the tree
                 let q = p[x as usize].map(f64::from);
                 let (d, face) = self.walk_output(v, q, ring);
                 Some(match excess_of(x, d) {
@@ -161,9 +161,9 @@ impl Remesher {
             .collect();
         if !left.is_empty() {
             if let Some((snapshot, face_of)) = self.snapshot() {
-                let grid = TriangleGrid::build(&snapshot);
+                let tree = TriangleBvh::build(&snapshot);
                 far.par_extend(left.into_par_iter().filter_map(|x| {
-                    let near = grid.nearest(p[x as usize])?;
+                    let near = tree.nearest(p[x as usize])?;
                     let e = excess_of(x, near.distance)?;
                     Some((e, x, face_of[near.triangle as usize]))
                 }));

@@ -4,7 +4,7 @@
 //! Each input vertex carries a target edge length (mm), interpolated at the projection.
 
 use crate::mesh::{Mesh, Topology};
-use crate::spatial::{closest_point_and_region, TriangleGrid, TriangleRegion};
+use crate::spatial::{closest_point_and_region, TriangleBvh, TriangleRegion};
 use rayon::prelude::*;
 
 /// A feature line of the input (a cap rim, an open border, or a piece of one between two
@@ -123,7 +123,7 @@ impl Line {
 #[derive(Debug, Clone)]
 struct PatchSurface {
     id: u32,
-    grid: TriangleGrid,
+    tree: TriangleBvh,
     corner_size: Vec<[f64; 3]>,
     /// Faces (local vertex indices) and, per local vertex, the faces around it (CSR), for
     /// walking from a face to its neighbours.
@@ -154,7 +154,7 @@ impl PatchSurface {
         }
         PatchSurface {
             id,
-            grid: TriangleGrid::build(sub),
+            tree: TriangleBvh::build(sub),
             corner_size,
             triangles,
             vertex_face_offsets,
@@ -164,7 +164,7 @@ impl PatchSurface {
 
     /// Closest point of face f to q, its squared distance and where on f it lies.
     fn closest(&self, f: u32, q: [f64; 3]) -> ([f64; 3], f64, TriangleRegion) {
-        let t = self.grid.triangle(f).map(|c| c.map(f64::from));
+        let t = self.tree.triangle(f).map(|c| c.map(f64::from));
         let (x, region) = closest_point_and_region(q, t[0], t[1], t[2]);
         let d2 = (0..3).map(|k| (x[k] - q[k]).powi(2)).sum();
         (x, d2, region)
@@ -182,7 +182,7 @@ impl PatchSurface {
     /// From face `start`, steps to a closer neighbour across the edge or around the corner
     /// where the closest point lies, until it lies inside a face or no such neighbour is
     /// closer: the nearest face near where the vertex was, which for the small moves of
-    /// relaxation is the nearest face, found in one to three triangle tests without a grid
+    /// relaxation is the nearest face, found in one to three triangle tests without a tree
     /// search, and never a face across a thin gap.
     fn walk(&self, start: u32, q: [f64; 3]) -> (u32, [f64; 3], f64) {
         let (mut x, mut best, mut region) = self.closest(start, q);
@@ -308,7 +308,7 @@ impl Reference {
 
     /// The nearest point of patch `id` to `q`, the target edge length there and the face it is
     /// on; `None` if the input has no such patch. With a `hint` (the face the point was on
-    /// before a small move), the search walks from there and asks the grid only when the walk
+    /// before a small move), the search walks from there and asks the tree only when the walk
     /// ends further than `reach` (mm) from q.
     pub fn project_to_patch(
         &self,
@@ -322,12 +322,12 @@ impl Reference {
         let (face, x) = match walked {
             Some((f, x, d2)) if d2 <= reach * reach => (f, x),
             _ => {
-                let near = patch.grid.nearest(q.map(|x| x as f32))?;
+                let near = patch.tree.nearest(q.map(|x| x as f32))?;
                 let (x, _, _) = patch.closest(near.triangle, q);
                 (near.triangle, x)
             }
         };
-        let t = patch.grid.triangle(face).map(|c| c.map(f64::from));
+        let t = patch.tree.triangle(face).map(|c| c.map(f64::from));
         let w = barycentric(x, t);
         let s = patch.corner_size[face as usize];
         Some((x, w[0] * s[0] + w[1] * s[1] + w[2] * s[2], face))

@@ -5,7 +5,7 @@
 
 use crate::mesh::geometry::vertex_normals;
 use crate::mesh::{Mesh, Topology};
-use crate::spatial::{closest_point_on_triangle, TriangleGrid};
+use crate::spatial::{closest_point_on_triangle, TriangleBvh};
 use rayon::prelude::*;
 
 /// Radius (mm) of the largest inside ball touching each vertex. On a tube this is the tube's
@@ -15,7 +15,7 @@ use rayon::prelude::*;
 /// every ball at half the mesh's diagonal took 2.1 s on the 17 k-triangle aneurysm, this 1.2 s).
 pub fn local_radius(mesh: &Mesh, topology: &Topology, max_mm: f64) -> Vec<f64> {
     const SAMPLE_EVERY: usize = 16;
-    let grid = TriangleGrid::build(mesh);
+    let tree = TriangleBvh::build(mesh);
     let normals = vertex_normals(mesh, topology);
     let p = mesh.positions();
     let volume_sign = if crate::mesh::geometry::signed_volume(mesh) < 0.0 {
@@ -34,10 +34,10 @@ pub fn local_radius(mesh: &Mesh, topology: &Topology, max_mm: f64) -> Vec<f64> {
             let c: [f64; 3] = std::array::from_fn(|k| x[k] + r * n[k]);
             // Done when nothing but the touching point's neighbourhood is inside (2 % slack
             // for the chords of a polygonal surface).
-            let Some(near) = grid.nearest_matching_within(c.map(|q| q as f32), r, |_| true) else {
+            let Some(near) = tree.nearest_matching_within(c.map(|q| q as f32), r, |_| true) else {
                 break;
             };
-            let t = grid.triangle(near.triangle).map(|q| q.map(f64::from));
+            let t = tree.triangle(near.triangle).map(|q| q.map(f64::from));
             let q = closest_point_on_triangle(c, t[0], t[1], t[2]);
             let dist2: f64 = (0..3).map(|k| (c[k] - q[k]).powi(2)).sum();
             if dist2.sqrt() >= r * 0.98 {

@@ -6,7 +6,7 @@ use crate::metrics::{
     average_normal_curvature, displacement_stats, displacements, enclosed_volume,
     min_triangle_angle, minimum_distance, surface_distance, DisplacementStats, SurfaceDistance,
 };
-use crate::spatial::TriangleGrid;
+use crate::spatial::TriangleBvh;
 use serde::Serialize;
 use std::fmt::Write;
 
@@ -52,13 +52,13 @@ pub fn compare(
     references: &[(String, Mesh)],
     voxel: Option<[f64; 3]>,
 ) -> CompareReport {
-    let grids: Vec<TriangleGrid> = references
+    let trees: Vec<TriangleBvh> = references
         .iter()
-        .map(|(_, m)| TriangleGrid::build(m))
+        .map(|(_, m)| TriangleBvh::build(m))
         .collect();
-    let refs: Vec<(&str, &Mesh, &TriangleGrid)> = references
+    let refs: Vec<(&str, &Mesh, &TriangleBvh)> = references
         .iter()
-        .zip(&grids)
+        .zip(&trees)
         .map(|((n, m), g)| (n.as_str(), m, g))
         .collect();
     compare_prepared(original, &Topology::build(original), smoothed, &refs, voxel)
@@ -66,12 +66,12 @@ pub fn compare(
 
 /// [`compare`] reusing what the caller already has: the original's topology (topology depends
 /// only on the triangles, so it also serves a smoothed mesh with the same triangles) and the
-/// references' triangle grids.
+/// references' hierarchies.
 pub fn compare_prepared(
     original: &Mesh,
     topo_o: &Topology,
     smoothed: &Mesh,
-    references: &[(&str, &Mesh, &TriangleGrid)],
+    references: &[(&str, &Mesh, &TriangleBvh)],
     voxel: Option<[f64; 3]>,
 ) -> CompareReport {
     let same_vertices = original.n_vertices() == smoothed.n_vertices()
@@ -83,9 +83,9 @@ pub fn compare_prepared(
         rebuilt = Topology::build(smoothed);
         &rebuilt
     };
-    let grid_o = TriangleGrid::build(original);
-    let grid_s = TriangleGrid::build(smoothed);
-    let distance = surface_distance(original, &grid_o, smoothed, &grid_s);
+    let tree_o = TriangleBvh::build(original);
+    let tree_s = TriangleBvh::build(smoothed);
+    let distance = surface_distance(original, &tree_o, smoothed, &tree_s);
     let vol_o = enclosed_volume(original, topo_o);
     let vol_s = enclosed_volume(smoothed, topo_s);
     let displacement = same_vertices
@@ -95,9 +95,9 @@ pub fn compare_prepared(
         .map(|h| distance.hausdorff_mm / (h[0] * h[0] + h[1] * h[1] + h[2] * h[2]).sqrt());
     let references = references
         .iter()
-        .map(|&(name, r, grid_r)| {
-            let before_mm = minimum_distance(original, &grid_o, r, grid_r);
-            let after_mm = minimum_distance(smoothed, &grid_s, r, grid_r);
+        .map(|&(name, r, tree_r)| {
+            let before_mm = minimum_distance(original, &tree_o, r, tree_r);
+            let after_mm = minimum_distance(smoothed, &tree_s, r, tree_r);
             ReferenceDistance {
                 name: name.to_string(),
                 before_mm,

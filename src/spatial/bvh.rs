@@ -1,148 +1,379 @@
-//! A bounding volume hierarchy over triangles for nearest-point queries far from the surface.
+//! Exact nearest-point queries over a mesh's triangles, near the surface or centimetres away.
 //!
-//! The uniform grid ([`super::TriangleGrid`]) answers a query near the surface from a few
-//! cells, but a query 1 cm away searches every cell within 1 cm: a cubic cost. The tree
-//! prunes whole empty regions at once, so its cost grows with the logarithm of the mesh size
-//! whatever the distance. Built by median splits on the longest axis of the centroids
-//! (subtrees in parallel), nodes in depth-first order, at most four triangles per leaf.
+//! A query first looks at the triangles of its own grid cell and the 26 around it
+//! (the `cells` module); on or near the surface that settles it. Any other query goes to a
+//! bounding volume hierarchy, which prunes whole regions out of reach at once, so its cost
+//! grows with the logarithm of the mesh size whatever the distance (searching a grid ring by
+//! ring grows with the cube of the distance). Four children per node, their boxes tested
+//! together; built by two median splits per node on the longest axis of the box centres
+//! (subtrees in parallel), nodes depth first, at most four triangles per leaf, with the
+//! leaves' corners copied in leaf order.
 
-use super::{offer, point_triangle_distance};
+use super::{point_triangle_distance, point_triangle_distance2};
+use crate::mesh::Mesh;
 use rayon::prelude::*;
 
 /// Most triangles in a leaf.
 const LEAF: usize = 4;
 /// Subtrees with more triangles than this are built in parallel.
 const PARALLEL: usize = 1 << 14;
+/// Marks a child that is a leaf: the rest of the word is its first entry in the leaf order.
+const LEAF_BIT: u32 = 1 << 31;
+/// Marks an unused child slot (its box is empty, so no query reaches it).
+const NO_CHILD: u32 = u32::MAX;
 
-/// A node: its box (mm), and either a leaf's stretch of [`TriangleBvh::order`] or, for an
-/// inner node, how far ahead its second child is (the first follows it directly).
+/// An inner node of four children: their boxes (mm; lane k is child k, so the four are
+/// tested together) and, per child, either the index of its node or [`LEAF_BIT`] with the
+/// leaf's first entry in the leaf order, and its triangle count (0 for a node).
 #[derive(Debug, Clone, Copy)]
+#[repr(C, align(64))]
 struct Node {
-    lo: [f32; 3],
-    hi: [f32; 3],
-    /// Leaf: first entry in `order`. Inner: offset of the second child from this node.
-    start_or_skip: u32,
-    /// Leaf: number of triangles (at least 1). Inner: 0.
-    count: u32,
+    lo: [[f32; 4]; 3],
+    hi: [[f32; 4]; 3],
+    child: [u32; 4],
+    count: [u32; 4],
 }
 
-/// The hierarchy over a set of triangles (by their indices in the slice it was built from).
+impl Default for Node {
+    fn default() -> Node {
+        Node {
+            lo: [[f32::INFINITY; 4]; 3],
+            hi: [[f32::NEG_INFINITY; 4]; 3],
+            child: [NO_CHILD; 4],
+            count: [0; 4],
+        }
+    }
+}
+
+/// The nearest point of a surface to a query point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Nearest {
+    /// Distance in mm.
+    pub distance: f64,
+    pub triangle: u32,
+}
+
+/// Nearest-triangle queries over a mesh's triangles (by their indices in the mesh): a grid of
+/// cells answers queries on and near the surface, the hierarchy the rest. Build once, query
+/// many; the same answers for any thread count.
 #[derive(Debug, Clone, Default)]
 pub struct TriangleBvh {
+    /// Corners (mm), in the mesh's order.
+    triangles: Vec<[[f32; 3]; 3]>,
+    /// The first look of a query: the triangles of its own and the neighbouring cells.
+    cells: super::cells::TriangleCells,
+    /// Built on the first query the cells do not settle, so indexes only ever asked near
+    /// the surface (a Hausdorff distance) never pay for it.
+    tree: std::sync::OnceLock<Tree>,
+}
+
+/// The hierarchy proper.
+#[derive(Debug, Clone, Default)]
+struct Tree {
+    /// Inner nodes, depth first: the root first, a node's first child right after it. None
+    /// when every triangle fits in one leaf.
     nodes: Vec<Node>,
     /// Triangle indices in leaf order.
     order: Vec<u32>,
+    /// Their corners (mm), copied in leaf order so a leaf reads one contiguous stretch.
+    corners: Vec<[[f32; 3]; 3]>,
 }
 
-/// Squared distance from `q` to the box `lo..hi` (0 inside).
-fn box_distance2(q: [f64; 3], lo: [f32; 3], hi: [f32; 3]) -> f64 {
-    (0..3)
-        .map(|a| {
-            let d = (lo[a] as f64 - q[a]).max(q[a] - hi[a] as f64).max(0.0);
-            d * d
+/// The best triangle of a search so far.
+struct Best {
+    /// Its distance (mm), or the search's bound while there is none.
+    distance: f64,
+    /// The square `distance` is the root of (for the bound, its square).
+    distance2: f64,
+    /// u32::MAX while there is none.
+    triangle: u32,
+    /// [`reach2`] of `distance`.
+    reach: f32,
+}
+
+impl Best {
+    fn within(within: f64) -> Best {
+        Best {
+            distance: within,
+            distance2: within * within,
+            triangle: u32::MAX,
+            reach: reach2(within),
+        }
+    }
+
+    /// Takes triangle `f` (corners `t`) if `keep` accepts it and it is closer than the best,
+    /// or as close with a lower index (so the answer does not depend on the order triangles
+    /// are offered in). `keep` is asked first: a search that rejects most triangles (an
+    /// opposite wall) then reads few corners.
+    #[inline]
+    fn offer(&mut self, p: [f32; 3], f: u32, t: &[[f32; 3]; 3], keep: &impl Fn(u32) -> bool) {
+        if !keep(f) {
+            return;
+        }
+        let (lo, hi) = triangle_box(t);
+        if box_distance2(p, lo, hi) > self.reach {
+            return;
+        }
+        // A square further than the best's by more than two units in the last place has a
+        // root that rounds further than the best: no root needed.
+        let d2 = point_triangle_distance2(p, *t);
+        if d2 > self.distance2 * (1.0 + 1e-15) {
+            return;
+        }
+        let d = d2.sqrt();
+        if d < self.distance || (d == self.distance && f < self.triangle) {
+            self.distance = d;
+            self.distance2 = d2;
+            self.triangle = f;
+            self.reach = reach2(d);
+        }
+    }
+
+    fn found(&self) -> Option<Nearest> {
+        (self.triangle != u32::MAX).then_some(Nearest {
+            distance: self.distance,
+            triangle: self.triangle,
         })
-        .sum()
+    }
+}
+
+/// Squared distances (mm^2) from `q` to four boxes, in f32. Each difference, square and sum
+/// is correctly rounded, so each result is within a relative 2^-21 of the exact value, or
+/// within 2^-146 of it where it is subnormal.
+#[inline]
+fn box_distances2(q: [f32; 3], lo: &[[f32; 4]; 3], hi: &[[f32; 4]; 3]) -> [f32; 4] {
+    let mut sum = [0.0f32; 4];
+    for a in 0..3 {
+        for k in 0..4 {
+            let d = (lo[a][k] - q[a]).max(q[a] - hi[a][k]).max(0.0);
+            sum[k] += d * d;
+        }
+    }
+    sum
+}
+
+/// Squared distance (mm^2) from `q` to one box, as [`box_distances2`] computes it.
+#[inline]
+fn box_distance2(q: [f32; 3], lo: [f32; 3], hi: [f32; 3]) -> f32 {
+    let mut sum = 0.0f32;
+    for a in 0..3 {
+        let d = (lo[a] - q[a]).max(q[a] - hi[a]).max(0.0);
+        sum += d * d;
+    }
+    sum
+}
+
+/// The largest squared box distance, as computed in f32, that may hold a triangle no further
+/// than `best` (mm): above the rounding of the f32 distances and of this bound by a wide
+/// margin (relative 1e-5, and the smallest normal f32 for subnormal results), so a box is
+/// pruned only when it is truly further than `best` and cannot hold even a tie.
+#[inline]
+fn reach2(best: f64) -> f32 {
+    (best * best * (1.0 + 1e-5)) as f32 + f32::MIN_POSITIVE
+}
+
+/// Box of a triangle's corners.
+#[inline]
+fn triangle_box(t: &[[f32; 3]; 3]) -> ([f32; 3], [f32; 3]) {
+    let lo = std::array::from_fn(|a| t[0][a].min(t[1][a]).min(t[2][a]));
+    let hi = std::array::from_fn(|a| t[0][a].max(t[1][a]).max(t[2][a]));
+    (lo, hi)
+}
+
+/// How a node splits `n` triangles: the sizes of its up to four children, in order (two
+/// median splits; a half that fits in a leaf is not split again).
+fn child_sizes(n: usize) -> impl Iterator<Item = usize> {
+    let halves = [n / 2, n - n / 2];
+    halves.into_iter().flat_map(|h| {
+        let parts = if h <= LEAF {
+            [h, 0]
+        } else {
+            [h / 2, h - h / 2]
+        };
+        parts.into_iter().filter(|&p| p > 0)
+    })
+}
+
+/// Inner nodes of a subtree of `n` triangles (a leaf is no node), remembered by size: a
+/// tree of median splits has at most two sizes per level.
+fn inner_nodes(n: usize, memo: &mut std::collections::HashMap<usize, usize>) -> usize {
+    if n <= LEAF {
+        return 0;
+    }
+    if let Some(&k) = memo.get(&n) {
+        return k;
+    }
+    let k = 1 + child_sizes(n).map(|c| inner_nodes(c, memo)).sum::<usize>();
+    memo.insert(n, k);
+    k
 }
 
 impl TriangleBvh {
-    /// Builds the hierarchy; the same tree for any thread count.
-    pub fn build(triangles: &[[[f32; 3]; 3]]) -> TriangleBvh {
-        if triangles.is_empty() {
-            return TriangleBvh::default();
-        }
-        let bounds: Vec<([f32; 3], [f32; 3])> = triangles
+    /// Indexes the triangles of `mesh`.
+    pub fn build(mesh: &Mesh) -> TriangleBvh {
+        let p = mesh.positions();
+        let triangles: Vec<[[f32; 3]; 3]> = mesh
+            .triangles()
             .par_iter()
-            .map(|t| {
-                let lo = std::array::from_fn(|a| t[0][a].min(t[1][a]).min(t[2][a]));
-                let hi = std::array::from_fn(|a| t[0][a].max(t[1][a]).max(t[2][a]));
-                (lo, hi)
-            })
+            .map(|t| t.map(|v| p[v as usize]))
             .collect();
-        let mut order: Vec<u32> = (0..triangles.len() as u32).collect();
-        let nodes = subtree(&mut order, 0, &bounds);
-        TriangleBvh { nodes, order }
+        TriangleBvh::from_triangles(&triangles)
     }
 
-    /// The triangle nearest to `p` among those `keep` accepts and no further than `within`,
-    /// with its distance (mm); ties go to the lower index. `triangles` must be the slice the
-    /// tree was built from; `spheres` their bounding spheres (centre, radius), to skip most
-    /// exact tests.
+    /// Indexes triangles given by their corners (mm); indices are positions in the slice.
+    pub fn from_triangles(triangles: &[[[f32; 3]; 3]]) -> TriangleBvh {
+        TriangleBvh {
+            triangles: triangles.to_vec(),
+            cells: super::cells::TriangleCells::build(triangles),
+            tree: std::sync::OnceLock::new(),
+        }
+    }
+
+    /// Builds the hierarchy now rather than on the first query the cells do not settle (for
+    /// timing it apart from the queries).
+    pub fn build_hierarchy(&self) {
+        self.tree.get_or_init(|| Tree::build(&self.triangles));
+    }
+
+    /// Number of indexed triangles.
+    pub fn n_triangles(&self) -> usize {
+        self.triangles.len()
+    }
+
+    /// Corners of triangle `f` (mm), in the order of the mesh it was built from.
+    pub fn triangle(&self, f: u32) -> [[f32; 3]; 3] {
+        self.triangles[f as usize]
+    }
+
+    /// The nearest triangle to `p` and its distance; `None` if there are no triangles.
+    pub fn nearest(&self, p: [f32; 3]) -> Option<Nearest> {
+        self.nearest_matching_within(p, f64::INFINITY, |_| true)
+    }
+
+    /// The nearest triangle to `p` among those `keep` accepts (by index); `None` if none is.
+    pub fn nearest_matching(&self, p: [f32; 3], keep: impl Fn(u32) -> bool) -> Option<Nearest> {
+        self.nearest_matching_within(p, f64::INFINITY, keep)
+    }
+
+    /// Distance from each point to the surface (mm), in parallel; infinite if it is empty.
+    pub fn distances(&self, points: &[[f32; 3]]) -> Vec<f64> {
+        points
+            .par_iter()
+            .map(|&p| self.nearest(p).map_or(f64::INFINITY, |n| n.distance))
+            .collect()
+    }
+
+    /// The triangle nearest to `p` among those `keep` accepts and no further than `within`
+    /// (mm), with its distance; ties go to the lower index. A search that only needs to beat
+    /// a known distance stops there.
     pub fn nearest_matching_within(
         &self,
-        triangles: &[[[f32; 3]; 3]],
-        spheres: &[([f64; 3], f64)],
         p: [f32; 3],
         within: f64,
         keep: impl Fn(u32) -> bool,
-    ) -> Option<(f64, u32)> {
-        if self.nodes.is_empty() || within.is_nan() {
+    ) -> Option<Nearest> {
+        if self.triangles.is_empty() || within.is_nan() {
             return None;
         }
-        let q = p.map(f64::from);
-        let mut best = within;
-        let mut best_triangle = u32::MAX;
-        // Depth is at most log2(n / LEAF) + 1 with median splits; 64 covers any u32 count.
-        let mut stack = [0u32; 64];
+        let mut best = Best::within(within);
+        // The query's own cell, then its neighbours: enough on the surface.
+        for ring in 0..=1 {
+            let walls = self.cells.visit_ring(p, ring, |ids, gap2| {
+                if gap2 <= best.distance * best.distance * (1.0 + 1e-9) {
+                    for &f in ids {
+                        best.offer(p, f, &self.triangles[f as usize], &keep);
+                    }
+                }
+            });
+            if best.distance < walls {
+                return best.found();
+            }
+            // Nothing in its own cell (a query off the surface, or a filter that rejects the
+            // triangles around it, as an opposite wall's does): the neighbours are unlikely
+            // to settle it either.
+            if best.triangle == u32::MAX {
+                break;
+            }
+        }
+        let tree = self.tree.get_or_init(|| Tree::build(&self.triangles));
+        match tree.search(p, best, &keep) {
+            Some(best) => best.found(),
+            None => self
+                .fallback(p, within, keep)
+                .map(|(distance, triangle)| Nearest { distance, triangle }),
+        }
+    }
+}
+
+impl Tree {
+    /// Continues the search for the nearest triangle to `p` from `best` (by value, so its
+    /// fields live in registers); `None` if the stack would overflow (unreachable with median
+    /// splits), for the caller to search in turn rather than lose the answer.
+    fn search(&self, p: [f32; 3], mut best: Best, keep: &impl Fn(u32) -> bool) -> Option<Best> {
+        // Child words, their counts and their boxes' squared distances, re-checked when
+        // popped. Depth is at most log4(n / LEAF) + 1; each level leaves at most three
+        // entries behind, so 64 covers any u32 count.
+        let mut stack = [(0u32, 0u32, 0.0f32); 64];
+        stack[0] = if self.nodes.is_empty() {
+            (LEAF_BIT, self.order.len() as u32, 0.0)
+        } else {
+            (0, 0, 0.0)
+        };
         let mut depth = 1;
         while depth > 0 {
             depth -= 1;
-            let node = self.nodes[stack[depth] as usize];
-            // Strictly further than the best: nothing inside can tie it either.
-            if box_distance2(q, node.lo, node.hi) > best * best {
+            let (child, count, gap2) = stack[depth];
+            if gap2 > best.reach {
                 continue;
             }
-            if node.count > 0 {
-                let start = node.start_or_skip as usize;
-                for &f in &self.order[start..start + node.count as usize] {
-                    if keep(f) {
-                        offer(triangles, spheres, p, f, &mut best, &mut best_triangle);
-                    }
+            if child & LEAF_BIT != 0 {
+                let start = (child & !LEAF_BIT) as usize;
+                let end = start + count as usize;
+                for (&f, t) in self.order[start..end].iter().zip(&self.corners[start..end]) {
+                    best.offer(p, f, t, keep);
                 }
                 continue;
             }
-            let first = stack[depth] + 1;
-            let second = stack[depth] + node.start_or_skip;
-            let d1 = {
-                let n = self.nodes[first as usize];
-                box_distance2(q, n.lo, n.hi)
-            };
-            let d2 = {
-                let n = self.nodes[second as usize];
-                box_distance2(q, n.lo, n.hi)
-            };
-            // The nearer child is searched first (pushed last).
-            let (near, far) = if d2 < d1 {
-                (second, first)
-            } else {
-                (first, second)
-            };
-            if depth + 2 > stack.len() {
-                // Unreachable with median splits; searched in turn rather than lost.
-                return self.fallback(triangles, p, within, keep);
+            let node = &self.nodes[child as usize];
+            let gaps = box_distances2(p, &node.lo, &node.hi);
+            // The children in reach, nearest pushed last (searched first).
+            let mut hits = [(0u32, 0u32, 0.0f32); 4];
+            let mut n_hits = 0;
+            for (k, &gap) in gaps.iter().enumerate() {
+                // An unused slot's box is empty (infinitely far), which an infinite reach
+                // would still take.
+                if gap <= best.reach && node.child[k] != NO_CHILD {
+                    let mut at = n_hits;
+                    // Insertion by decreasing distance; equal distances keep slot order.
+                    while at > 0 && hits[at - 1].2 < gap {
+                        hits[at] = hits[at - 1];
+                        at -= 1;
+                    }
+                    hits[at] = (node.child[k], node.count[k], gap);
+                    n_hits += 1;
+                }
             }
-            stack[depth] = far;
-            stack[depth + 1] = near;
-            depth += 2;
+            if depth + hits.len() > stack.len() {
+                return None;
+            }
+            // All four copied (a fixed-size move), only the hits kept.
+            stack[depth..depth + hits.len()].copy_from_slice(&hits);
+            depth += n_hits;
         }
-        (best_triangle != u32::MAX).then_some((best, best_triangle))
+        Some(best)
     }
+}
 
+impl TriangleBvh {
     /// Every triangle tested: the answer the tree must give.
-    fn fallback(
-        &self,
-        triangles: &[[[f32; 3]; 3]],
-        p: [f32; 3],
-        within: f64,
-        keep: impl Fn(u32) -> bool,
-    ) -> Option<(f64, u32)> {
+    fn fallback(&self, p: [f32; 3], within: f64, keep: impl Fn(u32) -> bool) -> Option<(f64, u32)> {
         let mut best: Option<(f64, u32)> = None;
-        for (f, t) in triangles.iter().enumerate() {
-            let f = f as u32;
+        for (f, t) in (0..).zip(&self.triangles) {
             if !keep(f) {
                 continue;
             }
             let d = point_triangle_distance(p, *t);
-            if d <= within && best.is_none_or(|(b, _)| d < b) {
+            if d <= within && best.is_none_or(|(b, g)| d < b || (d == b && f < g)) {
                 best = Some((d, f));
             }
         }
@@ -150,29 +381,73 @@ impl TriangleBvh {
     }
 }
 
-/// The nodes of the subtree over `order` (entries `base..` of the whole order), depth first.
-fn subtree(order: &mut [u32], base: usize, bounds: &[([f32; 3], [f32; 3])]) -> Vec<Node> {
+impl Tree {
+    /// The hierarchy over `triangles`; the same tree for any thread count.
+    fn build(triangles: &[[[f32; 3]; 3]]) -> Tree {
+        // Boxes carried along with the indices: the splits compare records in place rather
+        // than look up each index's box in scattered memory.
+        let mut items: Vec<Item> = triangles
+            .par_iter()
+            .enumerate()
+            .map(|(f, t)| {
+                let (lo, hi) = triangle_box(t);
+                Item {
+                    lo,
+                    hi,
+                    f: f as u32,
+                }
+            })
+            .collect();
+        // Every subtree's node count is known before it is built, so subtrees fill disjoint
+        // stretches of one array in parallel.
+        let mut memo = std::collections::HashMap::new();
+        let mut nodes = vec![Node::default(); inner_nodes(items.len(), &mut memo)];
+        if !nodes.is_empty() {
+            subtree(&mut items, 0, &mut nodes, 0, &memo);
+        }
+        let order: Vec<u32> = items.par_iter().map(|item| item.f).collect();
+        let corners = order.par_iter().map(|&f| triangles[f as usize]).collect();
+        Tree {
+            nodes,
+            order,
+            corners,
+        }
+    }
+}
+
+/// A triangle while the tree is built: its box (mm) and its index.
+#[derive(Debug, Clone, Copy)]
+struct Item {
+    lo: [f32; 3],
+    hi: [f32; 3],
+    f: u32,
+}
+
+/// Box of `items`.
+fn extent(items: &[Item]) -> ([f32; 3], [f32; 3]) {
     let mut lo = [f32::INFINITY; 3];
     let mut hi = [f32::NEG_INFINITY; 3];
+    for item in items {
+        for a in 0..3 {
+            lo[a] = lo[a].min(item.lo[a]);
+            hi[a] = hi[a].max(item.hi[a]);
+        }
+    }
+    (lo, hi)
+}
+
+/// Splits `items` at their middle along the longest axis of their box centres; ties by index,
+/// so the halves do not depend on the order the slice arrived in.
+fn median_split(items: &mut [Item]) -> (&mut [Item], &mut [Item]) {
+    // Centres doubled (lo + hi): the same order as the centres, one multiplication less.
     let mut clo = [f32::INFINITY; 3];
     let mut chi = [f32::NEG_INFINITY; 3];
-    for &f in order.iter() {
-        let (l, h) = bounds[f as usize];
+    for item in items.iter() {
         for a in 0..3 {
-            lo[a] = lo[a].min(l[a]);
-            hi[a] = hi[a].max(h[a]);
-            let c = 0.5 * (l[a] + h[a]);
+            let c = item.lo[a] + item.hi[a];
             clo[a] = clo[a].min(c);
             chi[a] = chi[a].max(c);
         }
-    }
-    if order.len() <= LEAF {
-        return vec![Node {
-            lo,
-            hi,
-            start_or_skip: base as u32,
-            count: order.len() as u32,
-        }];
     }
     let axis = (0..3)
         .max_by(|&a, &b| {
@@ -181,37 +456,81 @@ fn subtree(order: &mut [u32], base: usize, bounds: &[([f32; 3], [f32; 3])]) -> V
                 .then(b.cmp(&a))
         })
         .unwrap_or(0);
-    let centre = |f: u32| {
-        let (l, h) = bounds[f as usize];
-        0.5 * (l[axis] + h[axis])
-    };
-    let mid = order.len() / 2;
-    // Ties by index: the same halves whatever the order the slice arrived in.
-    order.select_nth_unstable_by(mid, |&x, &y| {
-        centre(x).total_cmp(&centre(y)).then(x.cmp(&y))
+    let mid = items.len() / 2;
+    items.select_nth_unstable_by(mid, |x, y| {
+        let (cx, cy) = (x.lo[axis] + x.hi[axis], y.lo[axis] + y.hi[axis]);
+        cx.total_cmp(&cy).then(x.f.cmp(&y.f))
     });
-    let (left, right) = order.split_at_mut(mid);
-    let (left, right) = if left.len() + right.len() > PARALLEL {
-        rayon::join(
-            || subtree(left, base, bounds),
-            || subtree(right, base + mid, bounds),
-        )
+    items.split_at_mut(mid)
+}
+
+/// A half of a node split again, unless it fits in a leaf.
+fn split_unless_leaf(half: &mut [Item]) -> (&mut [Item], Option<&mut [Item]>) {
+    if half.len() <= LEAF {
+        (half, None)
     } else {
-        (
-            subtree(left, base, bounds),
-            subtree(right, base + mid, bounds),
-        )
+        let (c, d) = median_split(half);
+        (c, Some(d))
+    }
+}
+
+/// Builds the subtree over `items` (more than [`LEAF`] triangles, entries `base..` of the
+/// whole leaf order) into `nodes`, its stretch of the node array, which starts at index
+/// `first` of the whole.
+fn subtree(
+    items: &mut [Item],
+    base: usize,
+    nodes: &mut [Node],
+    first: usize,
+    memo: &std::collections::HashMap<usize, usize>,
+) {
+    // Two levels of median splits: up to four parts, in leaf order.
+    let large = items.len() > PARALLEL;
+    let (a, b) = median_split(items);
+    let (a, b) = if large {
+        rayon::join(|| split_unless_leaf(a), || split_unless_leaf(b))
+    } else {
+        (split_unless_leaf(a), split_unless_leaf(b))
     };
-    let mut nodes = Vec::with_capacity(1 + left.len() + right.len());
-    nodes.push(Node {
-        lo,
-        hi,
-        start_or_skip: 1 + left.len() as u32,
-        count: 0,
-    });
-    nodes.extend(left);
-    nodes.extend(right);
-    nodes
+    let mut parts: Vec<&mut [Item]> = Vec::with_capacity(4);
+    for (c, d) in [a, b] {
+        parts.push(c);
+        parts.extend(d);
+    }
+    let (this, mut rest) = nodes.split_at_mut(1);
+    let mut node = Node::default();
+    let mut jobs = Vec::with_capacity(4);
+    let (mut at_order, mut at_node) = (base, first + 1);
+    for (k, part) in parts.into_iter().enumerate() {
+        let (lo, hi) = extent(part);
+        for a in 0..3 {
+            node.lo[a][k] = lo[a];
+            node.hi[a][k] = hi[a];
+        }
+        let n = part.len();
+        if n <= LEAF {
+            node.child[k] = LEAF_BIT | at_order as u32;
+            node.count[k] = n as u32;
+        } else {
+            let size = memo.get(&n).copied().unwrap_or(0);
+            let (stretch, tail) = rest.split_at_mut(size);
+            rest = tail;
+            node.child[k] = at_node as u32;
+            jobs.push((part, at_order, stretch, at_node));
+            at_node += size;
+        }
+        at_order += n;
+    }
+    this[0] = node;
+    let total: usize = jobs.iter().map(|j| j.0.len()).sum();
+    if total > PARALLEL {
+        jobs.into_par_iter()
+            .for_each(|(part, base, stretch, first)| subtree(part, base, stretch, first, memo));
+    } else {
+        for (part, base, stretch, first) in jobs {
+            subtree(part, base, stretch, first, memo);
+        }
+    }
 }
 
 #[cfg(test)]
@@ -233,19 +552,28 @@ mod tests {
             if n > 3 {
                 triangles[n - 1] = triangles[0];
             }
-            let spheres: Vec<_> = triangles.iter().map(super::super::sphere_around).collect();
-            let tree = TriangleBvh::build(&triangles);
+            let tree = TriangleBvh::from_triangles(&triangles);
             for _ in 0..200 {
-                // Near and far: up to 60 mm outside the box.
-                let p: [f32; 3] = std::array::from_fn(|_| rng.f32() * 160.0 - 60.0);
+                // Near and far (up to 60 mm outside the box), and on the surface (next to a
+                // corner, where the cells settle the query).
+                let p: [f32; 3] = if rng.bool() {
+                    std::array::from_fn(|_| rng.f32() * 160.0 - 60.0)
+                } else {
+                    let corner = triangles[rng.usize(0..n)][rng.usize(0..3)];
+                    corner.map(|x| x + 0.02 * (rng.f32() - 0.5))
+                };
                 let within = if rng.bool() {
                     f64::INFINITY
                 } else {
                     rng.f64() * 30.0
                 };
-                let keep = |f: u32| f % 7 != 3;
-                let fast = tree.nearest_matching_within(&triangles, &spheres, p, within, keep);
-                let slow = tree.fallback(&triangles, p, within, keep);
+                // Sometimes nothing is kept: the search then never narrows.
+                let none = round % 5 == 4;
+                let keep = |f: u32| f % 7 != 3 && !none;
+                let fast = tree
+                    .nearest_matching_within(p, within, keep)
+                    .map(|n| (n.distance, n.triangle));
+                let slow = tree.fallback(p, within, keep);
                 assert_eq!(fast, slow, "round {round}, point {p:?}, within {within}");
             }
         }
@@ -262,10 +590,11 @@ mod tests {
                 .num_threads(threads)
                 .build()
                 .unwrap()
-                .install(|| TriangleBvh::build(&triangles))
+                .install(|| Tree::build(&triangles))
         };
         let (one, three) = (build(1), build(3));
         assert_eq!(one.order, three.order);
         assert_eq!(one.nodes.len(), three.nodes.len());
+        assert_eq!(one.corners, three.corners);
     }
 }

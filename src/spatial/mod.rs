@@ -1,14 +1,12 @@
-//! Exact point-to-surface distance: the closest point on a triangle, and a uniform grid over a
-//! mesh's triangles that answers nearest-triangle queries by searching rings of cells outward
-//! until no unvisited cell can hold anything closer (queries far from the surface go to a
-//! bounding volume hierarchy instead, [`bvh`]); exact triangle-triangle intersection
-//! ([`intersect`]).
+//! Exact point-to-surface distance: the closest point on a triangle, a bounding volume
+//! hierarchy over a mesh's triangles that answers nearest-triangle queries near and far from
+//! the surface ([`bvh`]), and exact triangle-triangle intersection ([`intersect`]).
 
 pub mod bvh;
+mod cells;
 pub mod intersect;
 
-use crate::mesh::Mesh;
-use rayon::prelude::*;
+pub use bvh::{Nearest, TriangleBvh};
 
 type V3 = [f64; 3];
 
@@ -119,11 +117,18 @@ pub fn closest_point_and_region(p: V3, a: V3, b: V3, c: V3) -> (V3, TriangleRegi
 
 /// Distance (mm) from p to triangle (a, b, c).
 pub fn point_triangle_distance(p: [f32; 3], t: [[f32; 3]; 3]) -> f64 {
+    point_triangle_distance2(p, t).sqrt()
+}
+
+/// Squared distance (mm^2) from p to triangle (a, b, c): [`point_triangle_distance`] before
+/// its square root, for searches that need the root only when a triangle may beat the best.
+#[inline]
+pub fn point_triangle_distance2(p: [f32; 3], t: [[f32; 3]; 3]) -> f64 {
     let f = |q: [f32; 3]| q.map(f64::from);
     let p = f(p);
     let q = closest_point_on_triangle(p, f(t[0]), f(t[1]), f(t[2]));
     let d = sub(p, q);
-    dot(d, d).sqrt()
+    dot(d, d)
 }
 
 /// Cell size and cell counts of a uniform grid over a box of `extent` (mm): cells of about
@@ -146,303 +151,6 @@ pub(crate) fn grid_cells(extent: [f64; 3], wanted: f64, n_items: usize) -> (f64,
     }
     let dims = std::array::from_fn(|a| (extent[a] / cell).floor() as usize + 1);
     (cell, dims)
-}
-
-/// A sphere around a triangle: its centroid and the distance to its furthest corner (mm).
-pub(crate) fn sphere_around(t: &[[f32; 3]; 3]) -> ([f64; 3], f64) {
-    let c: [f64; 3] =
-        std::array::from_fn(|a| (t[0][a] as f64 + t[1][a] as f64 + t[2][a] as f64) / 3.0);
-    let r = t
-        .iter()
-        .map(|q| (0..3).map(|a| (q[a] as f64 - c[a]).powi(2)).sum::<f64>())
-        .fold(0.0, f64::max)
-        .sqrt();
-    (c, r)
-}
-
-/// Offers triangle `f` to a nearest-point search from `p`: skipped when its bounding sphere
-/// lies further than the best distance so far (mm), taken when it is closer, or as close with
-/// a lower index (so the answer does not depend on the order triangles are offered in).
-pub(crate) fn offer(
-    triangles: &[[[f32; 3]; 3]],
-    spheres: &[([f64; 3], f64)],
-    p: [f32; 3],
-    f: u32,
-    best: &mut f64,
-    best_triangle: &mut u32,
-) {
-    let (centre, radius) = spheres[f as usize];
-    let to_centre = (0..3)
-        .map(|a| (p[a] as f64 - centre[a]).powi(2))
-        .sum::<f64>()
-        .sqrt();
-    if to_centre - radius > *best {
-        return;
-    }
-    let d = point_triangle_distance(p, triangles[f as usize]);
-    if d < *best || (d == *best && f < *best_triangle) {
-        *best = d;
-        *best_triangle = f;
-    }
-}
-
-/// A uniform grid over a mesh's triangles for nearest-triangle queries. Build once, query many.
-#[derive(Debug, Clone)]
-pub struct TriangleGrid {
-    triangles: Vec<[[f32; 3]; 3]>,
-    /// Bounding sphere per triangle (centre, radius), to skip most exact tests.
-    spheres: Vec<([f64; 3], f64)>,
-    origin: [f64; 3],
-    cell: f64,
-    dims: [usize; 3],
-    cell_offsets: Vec<u32>,
-    cell_triangles: Vec<u32>,
-    /// For queries the first rings of cells do not settle (far from the surface); built on
-    /// the first such query, so grids only ever queried near the surface never pay for it.
-    tree: std::sync::OnceLock<bvh::TriangleBvh>,
-}
-
-/// Rings of grid cells searched before a query that has found nothing yet, or is still far
-/// from settled, goes to the tree instead: beyond that, the cells to visit grow with the cube
-/// of the distance and the tree's pruning wins.
-const NEAR_RINGS: usize = 1;
-
-/// The nearest point of a surface to a query point.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Nearest {
-    /// Distance in mm.
-    pub distance: f64,
-    pub triangle: u32,
-}
-
-impl TriangleGrid {
-    /// Indexes the triangles of `mesh`; cells are about twice the mean edge length.
-    pub fn build(mesh: &Mesh) -> TriangleGrid {
-        let p = mesh.positions();
-        let triangles: Vec<[[f32; 3]; 3]> = mesh
-            .triangles()
-            .iter()
-            .map(|t| t.map(|v| p[v as usize]))
-            .collect();
-        let n = triangles.len().max(1);
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
-        let mut edge_sum = 0.0f64;
-        for t in &triangles {
-            for (k, q) in t.iter().enumerate() {
-                for a in 0..3 {
-                    lo[a] = lo[a].min(q[a] as f64);
-                    hi[a] = hi[a].max(q[a] as f64);
-                }
-                let r = t[(k + 1) % 3];
-                edge_sum += (0..3)
-                    .map(|a| (q[a] as f64 - r[a] as f64).powi(2))
-                    .sum::<f64>()
-                    .sqrt();
-            }
-        }
-        if triangles.is_empty() {
-            lo = [0.0; 3];
-            hi = [0.0; 3];
-        }
-        let extent: [f64; 3] = std::array::from_fn(|a| (hi[a] - lo[a]).max(0.0));
-        let (cell, dims) = grid_cells(extent, 2.0 * edge_sum / (3 * n) as f64, n);
-        let cell_of =
-            |x: f64, a: usize| (((x - lo[a]) / cell).floor().max(0.0) as usize).min(dims[a] - 1);
-        let linear = |i: usize, j: usize, k: usize| (k * dims[1] + j) * dims[0] + i;
-        let range = |t: &[[f32; 3]; 3]| -> [std::ops::RangeInclusive<usize>; 3] {
-            std::array::from_fn(|a| {
-                let mn = t.iter().map(|q| q[a] as f64).fold(f64::INFINITY, f64::min);
-                let mx = t
-                    .iter()
-                    .map(|q| q[a] as f64)
-                    .fold(f64::NEG_INFINITY, f64::max);
-                cell_of(mn, a)..=cell_of(mx, a)
-            })
-        };
-        let n_cells = dims[0] * dims[1] * dims[2];
-        let mut cell_offsets = vec![0u32; n_cells + 1];
-        for t in &triangles {
-            let [ri, rj, rk] = range(t);
-            for k in rk {
-                for j in rj.clone() {
-                    for i in ri.clone() {
-                        cell_offsets[linear(i, j, k) + 1] += 1;
-                    }
-                }
-            }
-        }
-        for i in 1..cell_offsets.len() {
-            cell_offsets[i] += cell_offsets[i - 1];
-        }
-        let mut cursor = cell_offsets[..n_cells].to_vec();
-        let mut cell_triangles = vec![0u32; cell_offsets[n_cells] as usize];
-        for (f, t) in triangles.iter().enumerate() {
-            let [ri, rj, rk] = range(t);
-            for k in rk {
-                for j in rj.clone() {
-                    for i in ri.clone() {
-                        let c = &mut cursor[linear(i, j, k)];
-                        cell_triangles[*c as usize] = f as u32;
-                        *c += 1;
-                    }
-                }
-            }
-        }
-        let spheres = triangles.par_iter().map(sphere_around).collect();
-        TriangleGrid {
-            triangles,
-            spheres,
-            origin: lo,
-            cell,
-            dims,
-            cell_offsets,
-            cell_triangles,
-            tree: std::sync::OnceLock::new(),
-        }
-    }
-
-    /// Number of indexed triangles.
-    pub fn n_triangles(&self) -> usize {
-        self.triangles.len()
-    }
-
-    /// Corners of indexed triangle `f` (mm), in the order of the mesh it was built from.
-    pub fn triangle(&self, f: u32) -> [[f32; 3]; 3] {
-        self.triangles[f as usize]
-    }
-
-    /// A sphere around triangle `f`: its centroid and the distance to its furthest corner (mm),
-    /// for rejecting it cheaply in nearest-point searches.
-    pub fn bounding_sphere(&self, f: u32) -> ([f64; 3], f64) {
-        self.spheres[f as usize]
-    }
-
-    /// The nearest triangle to `p` and its distance; `None` if there are no triangles.
-    pub fn nearest(&self, p: [f32; 3]) -> Option<Nearest> {
-        self.nearest_matching(p, |_| true)
-    }
-
-    /// The nearest triangle to `p` among those `keep` accepts (by index); `None` if none is.
-    pub fn nearest_matching(&self, p: [f32; 3], keep: impl Fn(u32) -> bool) -> Option<Nearest> {
-        self.nearest_matching_within(p, f64::INFINITY, keep)
-    }
-
-    /// As [`Self::nearest_matching`], among triangles no further than `within` (mm): a search
-    /// that only needs to beat a known distance stops there.
-    pub fn nearest_matching_within(
-        &self,
-        p: [f32; 3],
-        within: f64,
-        keep: impl Fn(u32) -> bool,
-    ) -> Option<Nearest> {
-        if self.triangles.is_empty() || within.is_nan() {
-            return None;
-        }
-        let q = p.map(f64::from);
-        let dims = self.dims;
-        let center: [usize; 3] = std::array::from_fn(|a| {
-            (((q[a] - self.origin[a]) / self.cell).floor().max(0.0) as usize).min(dims[a] - 1)
-        });
-        let mut best = within;
-        // None yet: a triangle exactly at `within` still counts.
-        let mut best_triangle = u32::MAX;
-        let max_ring = dims.iter().copied().max().unwrap_or(1);
-        let mut settled = false;
-        for r in 0..=max_ring {
-            let lo: [usize; 3] = std::array::from_fn(|a| center[a].saturating_sub(r));
-            let hi: [usize; 3] = std::array::from_fn(|a| (center[a] + r).min(dims[a] - 1));
-            // Only the shell of ring r (inner cells were searched already): whole rows where
-            // j or k is on the shell, else just the two end cells of the row.
-            let mut visit = |i: usize, j: usize, k: usize| {
-                // Skip cells that cannot hold anything closer than the best so far.
-                let cell_gap2: f64 = [i, j, k]
-                    .iter()
-                    .enumerate()
-                    .map(|(a, &x)| {
-                        let lo = self.origin[a] + x as f64 * self.cell;
-                        let gap = (lo - q[a]).max(q[a] - (lo + self.cell)).max(0.0);
-                        gap * gap
-                    })
-                    .sum();
-                if cell_gap2 > best * best {
-                    return;
-                }
-                let c = (k * dims[1] + j) * dims[0] + i;
-                let ids = &self.cell_triangles
-                    [self.cell_offsets[c] as usize..self.cell_offsets[c + 1] as usize];
-                for &f in ids {
-                    if keep(f) {
-                        let (triangles, spheres) = (&self.triangles, &self.spheres);
-                        offer(triangles, spheres, p, f, &mut best, &mut best_triangle);
-                    }
-                }
-            };
-            let on_shell = |x: usize, a: usize| x + r == center[a] || x == center[a] + r;
-            for k in lo[2]..=hi[2] {
-                for j in lo[1]..=hi[1] {
-                    if on_shell(k, 2) || on_shell(j, 1) {
-                        for i in lo[0]..=hi[0] {
-                            visit(i, j, k);
-                        }
-                    } else {
-                        if center[0] >= r {
-                            visit(center[0] - r, j, k);
-                        }
-                        if r > 0 && center[0] + r < dims[0] {
-                            visit(center[0] + r, j, k);
-                        }
-                    }
-                }
-            }
-            // Nothing unvisited can be closer than the nearest face of the visited block on
-            // a side where the grid goes on.
-            let mut bound = f64::INFINITY;
-            for a in 0..3 {
-                if lo[a] > 0 {
-                    bound = bound.min(q[a] - (self.origin[a] + lo[a] as f64 * self.cell));
-                }
-                if hi[a] + 1 < dims[a] {
-                    bound = bound.min(self.origin[a] + (hi[a] + 1) as f64 * self.cell - q[a]);
-                }
-            }
-            if best <= bound {
-                settled = true;
-                break;
-            }
-            // Nothing found yet, or more than two rings still to search: the rings left grow
-            // with the cube of the distance, the tree's search does not.
-            if r >= NEAR_RINGS && (best_triangle == u32::MAX || best > bound + 2.0 * self.cell) {
-                break;
-            }
-        }
-        if !settled {
-            // Far from the surface: the tree finds the nearest of all triangles no further
-            // than the best so far (the same answer, ties included, as more rings would).
-            if let Some((d, f)) = self
-                .tree
-                .get_or_init(|| bvh::TriangleBvh::build(&self.triangles))
-                .nearest_matching_within(&self.triangles, &self.spheres, p, best, &keep)
-            {
-                if d < best || (d == best && f < best_triangle) {
-                    best = d;
-                    best_triangle = f;
-                }
-            }
-        }
-        (best_triangle != u32::MAX).then_some(Nearest {
-            distance: best,
-            triangle: best_triangle,
-        })
-    }
-
-    /// Distance from each point to the surface (mm), in parallel; infinite if it is empty.
-    pub fn distances(&self, points: &[[f32; 3]]) -> Vec<f64> {
-        points
-            .par_iter()
-            .map(|&p| self.nearest(p).map_or(f64::INFINITY, |n| n.distance))
-            .collect()
-    }
 }
 
 #[cfg(test)]

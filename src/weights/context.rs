@@ -10,7 +10,7 @@ use crate::analysis::{
     detect_caps, stack_axis, CapDetection, CapParams, StackAxis, StackAxisParams,
 };
 use crate::mesh::{Mesh, Topology};
-use crate::spatial::TriangleGrid;
+use crate::spatial::TriangleBvh;
 use serde::{Deserialize, Serialize};
 
 /// Where the stack axis comes from.
@@ -117,7 +117,7 @@ pub fn context_weights(
     mesh: &Mesh,
     topology: &Topology,
     params: &ContextParams,
-    references: &[&TriangleGrid],
+    references: &[&TriangleBvh],
 ) -> Context {
     let n = mesh.n_vertices();
     let (estimated_axis, axis) = if !params.staircase {

@@ -4,7 +4,7 @@
 
 use super::VertexWeights;
 use crate::mesh::Mesh;
-use crate::spatial::TriangleGrid;
+use crate::spatial::TriangleBvh;
 use serde::{Deserialize, Serialize};
 
 /// How a distance becomes a weight.
@@ -60,10 +60,10 @@ impl std::str::FromStr for DistanceScaling {
 }
 
 /// Minimum distance (mm) from each vertex of `mesh` to the nearest of the reference surfaces.
-pub fn reference_distances(mesh: &Mesh, references: &[&TriangleGrid]) -> Vec<f64> {
+pub fn reference_distances(mesh: &Mesh, references: &[&TriangleBvh]) -> Vec<f64> {
     let mut best = vec![f64::INFINITY; mesh.n_vertices()];
-    for grid in references {
-        for (b, d) in best.iter_mut().zip(grid.distances(mesh.positions())) {
+    for tree in references {
+        for (b, d) in best.iter_mut().zip(tree.distances(mesh.positions())) {
             *b = b.min(d);
         }
     }

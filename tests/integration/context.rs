@@ -173,7 +173,7 @@ fn stack_axis_is_right_or_too_weak_raw_and_after_laplace() {
 use destair::analysis::{detect_caps, CapParams};
 use destair::metrics::{average_normal_curvature, enclosed_volume, minimum_distance};
 use destair::smooth::{boundary_vertices, smooth, Method};
-use destair::spatial::TriangleGrid;
+use destair::spatial::TriangleBvh;
 use destair::weights::{
     context_weights, AxisChoice, ContextParams, DistanceScaling, StaircaseParams, VertexWeights,
 };
@@ -366,7 +366,7 @@ fn distance_aware_laplace_on_the_neck_keeps_the_tumor_vein_distance() {
     let case = named_case("neck", &PhantomOptions::default()).unwrap();
     let (tumor, vein, trachea) = (&case.meshes[0].1, &case.meshes[1].1, &case.meshes[2].1);
     let t = Topology::build(tumor);
-    let (gv, gt) = (TriangleGrid::build(vein), TriangleGrid::build(trachea));
+    let (gv, gt) = (TriangleBvh::build(vein), TriangleBvh::build(trachea));
     let params = ContextParams {
         staircase: false,
         distance_scaling: DistanceScaling::Linear,
@@ -374,8 +374,8 @@ fn distance_aware_laplace_on_the_neck_keeps_the_tumor_vein_distance() {
     };
     let ctx = context_weights(tumor, &t, &params, &[&gv, &gt]);
     let s = smoothed(tumor, Method::Laplace { lambda: 1.0 }, 30, &ctx.weights);
-    let before = minimum_distance(tumor, &TriangleGrid::build(tumor), vein, &gv);
-    let after = minimum_distance(&s, &TriangleGrid::build(&s), vein, &gv);
+    let before = minimum_distance(tumor, &TriangleBvh::build(tumor), vein, &gv);
+    let after = minimum_distance(&s, &TriangleBvh::build(&s), vein, &gv);
     let c0 = average_normal_curvature(tumor, &t);
     let c1 = average_normal_curvature(&s, &Topology::build(&s));
     eprintln!("tumor-vein {before:.4} -> {after:.4} mm; curvature {c0:.2} -> {c1:.2} degrees");
@@ -388,7 +388,7 @@ fn distance_aware_laplace_on_the_neck_keeps_the_tumor_vein_distance() {
         30,
         &VertexWeights::uniform(tumor.n_vertices()),
     );
-    let uniform_after = minimum_distance(&u, &TriangleGrid::build(&u), vein, &gv);
+    let uniform_after = minimum_distance(&u, &TriangleBvh::build(&u), vein, &gv);
     assert!(
         (uniform_after - before).abs() > 0.1,
         "{before} -> {uniform_after}"

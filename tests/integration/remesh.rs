@@ -143,8 +143,8 @@ fn the_capped_aneurysm_keeps_its_patches_and_planar_caps() {
         }
         // Vertices stay on the smoothed surface (to float precision of the projection), and
         // the surfaces lie within a fifth of the target of each other.
-        let grid = destair::spatial::TriangleGrid::build(&mesh);
-        let far = grid
+        let tree = destair::spatial::TriangleBvh::build(&mesh);
+        let far = tree
             .distances(r.mesh.positions())
             .into_iter()
             .fold(0.0, f64::max);

@@ -454,7 +454,7 @@ close_open_ends = true
 #[test]
 fn the_report_measures_every_near_pair_before_and_after() {
     use destair::metrics::minimum_distance;
-    use destair::spatial::TriangleGrid;
+    use destair::spatial::TriangleBvh;
     let tmp = tempfile::tempdir().unwrap();
     let case = tmp.path().join("cases/neck");
     let made = destair(&["phantom", "neck", "--out", case.to_str().unwrap()]);
@@ -504,12 +504,7 @@ skip = true
                 read(dir.join(format!("{a}.ply"))),
                 read(dir.join(format!("{b}.ply"))),
             );
-            let d = minimum_distance(
-                &ma,
-                &TriangleGrid::build(&ma),
-                &mb,
-                &TriangleGrid::build(&mb),
-            );
+            let d = minimum_distance(&ma, &TriangleBvh::build(&ma), &mb, &TriangleBvh::build(&mb));
             let reported = p[format!("min_distance_{when}_mm")].as_f64().unwrap();
             assert_eq!(reported, d, "{a} - {b} {when}");
         }
@@ -552,7 +547,7 @@ skip = true
 #[test]
 fn the_guard_keeps_the_gap_repairs_locally_and_fails_what_it_cannot_repair() {
     use destair::metrics::vertex_normal_curvature;
-    use destair::spatial::TriangleGrid;
+    use destair::spatial::TriangleBvh;
     let tmp = tempfile::tempdir().unwrap();
     let case = tmp.path().join("cases/g");
     destair_ok(&["phantom", "neck-groove", "--out", case.to_str().unwrap()]);
@@ -614,9 +609,9 @@ fn the_guard_keeps_the_gap_repairs_locally_and_fails_what_it_cannot_repair() {
             .mesh
     };
     let vein = read(case.join("vein.ply"));
-    let grid = TriangleGrid::build(&vein);
+    let tree = TriangleBvh::build(&vein);
     let input = read(case.join("tumor.ply"));
-    let away: Vec<bool> = grid
+    let away: Vec<bool> = tree
         .distances(input.positions())
         .iter()
         .map(|&d| d > 3.0)

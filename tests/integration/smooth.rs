@@ -6,7 +6,7 @@ use crate::common;
 use destair::metrics::{average_normal_curvature, enclosed_volume, surface_distance};
 use destair::phantom::{named_case, PhantomOptions};
 use destair::smooth::{boundary_vertices, cell_edge_axes, smooth, Method};
-use destair::spatial::{point_triangle_distance, TriangleGrid};
+use destair::spatial::{point_triangle_distance, TriangleBvh};
 use destair::weights::VertexWeights;
 use destair::{Mesh, Topology};
 
@@ -340,7 +340,7 @@ fn diamond_on_sphere_iso_matches_bade_2007() {
     assert!(stats.converged);
     let s = with_positions(m, p);
     let ratio = volume(&s) / volume(m);
-    let d = surface_distance(m, &TriangleGrid::build(m), &s, &TriangleGrid::build(&s));
+    let d = surface_distance(m, &TriangleBvh::build(m), &s, &TriangleBvh::build(&s));
     let max_d = d.hausdorff_mm / 3f64.sqrt();
     let c0 = average_normal_curvature(m, &topo);
     let c1 = average_normal_curvature(&s, &Topology::build(&s));
@@ -419,7 +419,7 @@ fn distances_match_brute_force_on_random_meshes() {
         ];
         let a = random_mesh(&mut rng, sizes[0], sizes[1], scale);
         let b = random_mesh(&mut rng, sizes[2], sizes[3], scale);
-        let (ga, gb) = (TriangleGrid::build(&a), TriangleGrid::build(&b));
+        let (ga, gb) = (TriangleBvh::build(&a), TriangleBvh::build(&b));
         // Query points inside, around and far outside the meshes.
         for _ in 0..200 {
             let q = [

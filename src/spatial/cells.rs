@@ -1,0 +1,173 @@
+//! A uniform grid of cells over a mesh's triangles: the first look of a nearest-point query.
+//!
+//! A query on or very near the surface (a vertex of a smoothed copy, as a Hausdorff distance
+//! asks) is settled by the triangles of its own cell and its neighbours: the nearest of them
+//! is closer than any wall of that block. That costs a few lookups, where descending a
+//! hierarchy costs a dozen nodes whose boxes all hold the point, and building the hierarchy
+//! costs more than the grid. Queries it does not settle go to the hierarchy
+//! ([`super::bvh`]) with the best distance found as their bound.
+
+use rayon::prelude::*;
+
+/// Cells over the triangles' box, about twice the mean edge length wide, each listing the
+/// triangles whose box overlaps it (CSR).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct TriangleCells {
+    origin: [f64; 3],
+    /// Cell width (mm).
+    cell: f64,
+    dims: [usize; 3],
+    offsets: Vec<u32>,
+    ids: Vec<u32>,
+    /// Far above the rounding of a wall's distance at this grid's coordinates (mm).
+    slack: f64,
+}
+
+impl TriangleCells {
+    /// Cells over `triangles` (mm); indices are positions in the slice.
+    pub(crate) fn build(triangles: &[[[f32; 3]; 3]]) -> TriangleCells {
+        if triangles.is_empty() {
+            return TriangleCells::default();
+        }
+        let n = triangles.len();
+        let (lo, hi, edge_sum) = triangles
+            .par_iter()
+            .fold(
+                || ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3], 0.0f64),
+                |(mut lo, mut hi, mut sum), t| {
+                    for (k, q) in t.iter().enumerate() {
+                        for a in 0..3 {
+                            lo[a] = lo[a].min(q[a] as f64);
+                            hi[a] = hi[a].max(q[a] as f64);
+                        }
+                        let r = t[(k + 1) % 3];
+                        sum += (0..3)
+                            .map(|a| (q[a] as f64 - r[a] as f64).powi(2))
+                            .sum::<f64>()
+                            .sqrt();
+                    }
+                    (lo, hi, sum)
+                },
+            )
+            .reduce(
+                || ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3], 0.0),
+                |(l1, h1, s1), (l2, h2, s2)| {
+                    (
+                        std::array::from_fn(|a| l1[a].min(l2[a])),
+                        std::array::from_fn(|a| h1[a].max(h2[a])),
+                        s1 + s2,
+                    )
+                },
+            );
+        let extent: [f64; 3] = std::array::from_fn(|a| (hi[a] - lo[a]).max(0.0));
+        let (cell, dims) = super::grid_cells(extent, 2.0 * edge_sum / (3 * n) as f64, n);
+        let cell_of =
+            |x: f64, a: usize| (((x - lo[a]) / cell).floor().max(0.0) as usize).min(dims[a] - 1);
+        let range = |t: &[[f32; 3]; 3]| -> [std::ops::RangeInclusive<usize>; 3] {
+            std::array::from_fn(|a| {
+                let mn = t.iter().map(|q| q[a]).fold(f32::INFINITY, f32::min);
+                let mx = t.iter().map(|q| q[a]).fold(f32::NEG_INFINITY, f32::max);
+                cell_of(mn as f64, a)..=cell_of(mx as f64, a)
+            })
+        };
+        let linear = |i: usize, j: usize, k: usize| (k * dims[1] + j) * dims[0] + i;
+        let n_cells = dims[0] * dims[1] * dims[2];
+        let mut offsets = vec![0u32; n_cells + 1];
+        for t in triangles {
+            let [ri, rj, rk] = range(t);
+            for k in rk {
+                for j in rj.clone() {
+                    for i in ri.clone() {
+                        offsets[linear(i, j, k) + 1] += 1;
+                    }
+                }
+            }
+        }
+        for i in 1..offsets.len() {
+            offsets[i] += offsets[i - 1];
+        }
+        let mut cursor = offsets[..n_cells].to_vec();
+        let mut ids = vec![0u32; offsets[n_cells] as usize];
+        for (f, t) in triangles.iter().enumerate() {
+            let [ri, rj, rk] = range(t);
+            for k in rk {
+                for j in rj.clone() {
+                    for i in ri.clone() {
+                        let c = &mut cursor[linear(i, j, k)];
+                        ids[*c as usize] = f as u32;
+                        *c += 1;
+                    }
+                }
+            }
+        }
+        let scale = (0..3)
+            .map(|a| lo[a].abs().max(hi[a].abs()))
+            .fold(cell, f64::max);
+        TriangleCells {
+            origin: lo,
+            cell,
+            dims,
+            offsets,
+            ids,
+            slack: 1e-9 * scale,
+        }
+    }
+
+    /// Visits the cells of ring `ring` around the cell of `p` (the nearest cell for a point
+    /// outside; ring 0 is that cell, ring 1 its 26 neighbours) with the squared distance from
+    /// `p` to each (mm^2), and returns how far `p` is from the walls of the block of rings 0
+    /// to `ring` where the grid goes on, less a slack for rounding (mm; infinite when the
+    /// block is the whole grid): every triangle listed in no cell of the block is at least
+    /// that far, so a triangle of the block strictly closer is the nearest of all.
+    pub(crate) fn visit_ring(
+        &self,
+        p: [f32; 3],
+        ring: usize,
+        mut visit: impl FnMut(&[u32], f64),
+    ) -> f64 {
+        if self.offsets.is_empty() {
+            return f64::NEG_INFINITY;
+        }
+        let q = p.map(f64::from);
+        let dims = self.dims;
+        let at: [usize; 3] = std::array::from_fn(|a| {
+            (((q[a] - self.origin[a]) / self.cell).floor().max(0.0) as usize).min(dims[a] - 1)
+        });
+        let lo: [usize; 3] = std::array::from_fn(|a| at[a].saturating_sub(ring));
+        let hi: [usize; 3] = std::array::from_fn(|a| (at[a] + ring).min(dims[a] - 1));
+        let on_ring = |x: usize, a: usize| x + ring == at[a] || x == at[a] + ring;
+        for k in lo[2]..=hi[2] {
+            for j in lo[1]..=hi[1] {
+                for i in lo[0]..=hi[0] {
+                    if !(on_ring(i, 0) || on_ring(j, 1) || on_ring(k, 2)) {
+                        continue;
+                    }
+                    let gap2: f64 = [i, j, k]
+                        .iter()
+                        .enumerate()
+                        .map(|(a, &x)| {
+                            let wall = self.origin[a] + x as f64 * self.cell;
+                            let gap = (wall - q[a]).max(q[a] - (wall + self.cell)).max(0.0);
+                            gap * gap
+                        })
+                        .sum();
+                    let c = (k * dims[1] + j) * dims[0] + i;
+                    visit(
+                        &self.ids[self.offsets[c] as usize..self.offsets[c + 1] as usize],
+                        gap2,
+                    );
+                }
+            }
+        }
+        let mut walls = f64::INFINITY;
+        for a in 0..3 {
+            if lo[a] > 0 {
+                walls = walls.min(q[a] - (self.origin[a] + lo[a] as f64 * self.cell));
+            }
+            if hi[a] + 1 < dims[a] {
+                walls = walls.min(self.origin[a] + (hi[a] + 1) as f64 * self.cell - q[a]);
+            }
+        }
+        walls - self.slack
+    }
+}
