@@ -114,8 +114,8 @@ impl TriangleCells {
     }
 
     /// Visits the cells of ring `ring` around the cell of `p` (the nearest cell for a point
-    /// outside; ring 0 is that cell, ring 1 its 26 neighbours) with the squared distance from
-    /// `p` to each (mm^2), and returns how far `p` is from the walls of the block of rings 0
+    /// outside; ring 0 is that cell, ring 1 its 26 neighbours) with a lower bound of the
+    /// squared distance from `p` to each (mm^2), and returns how far `p` is from the walls of the block of rings 0
     /// to `ring` where the grid goes on, less a slack for rounding (mm; infinite when the
     /// block is the whole grid): every triangle listed in no cell of the block is at least
     /// that far, so a triangle of the block strictly closer is the nearest of all.
@@ -147,7 +147,10 @@ impl TriangleCells {
                         .enumerate()
                         .map(|(a, &x)| {
                             let wall = self.origin[a] + x as f64 * self.cell;
-                            let gap = (wall - q[a]).max(q[a] - (wall + self.cell)).max(0.0);
+                            // Less the slack, as the walls below: a lower bound whatever
+                            // the rounding of the wall's place.
+                            let gap = (wall - q[a]).max(q[a] - (wall + self.cell));
+                            let gap = (gap - self.slack).max(0.0);
                             gap * gap
                         })
                         .sum();
