@@ -232,7 +232,12 @@ impl TriangleBvh {
     /// Builds the hierarchy now rather than on the first query the cells do not settle (for
     /// timing it apart from the queries).
     pub fn build_hierarchy(&self) {
-        self.tree.get_or_init(|| Tree::build(&self.triangles));
+        self.hierarchy();
+    }
+
+    /// The hierarchy, built on first use.
+    fn hierarchy(&self) -> &Tree {
+        self.tree.get_or_init(|| Tree::build(&self.triangles))
     }
 
     /// Number of indexed triangles.
@@ -295,8 +300,7 @@ impl TriangleBvh {
                 break;
             }
         }
-        let tree = self.tree.get_or_init(|| Tree::build(&self.triangles));
-        match tree.search(p, best, &keep) {
+        match self.hierarchy().search(p, best, &keep) {
             Some(best) => best.found(),
             None => self
                 .fallback(p, within, keep)
