@@ -9,7 +9,7 @@
 //! (subtrees in parallel), nodes depth first, at most four triangles per leaf, with the
 //! leaves' corners copied in leaf order.
 
-use super::{point_triangle_distance, point_triangle_distance2};
+use super::{point_triangle_distance, point_triangle_distance2, triangle_box};
 use crate::mesh::Mesh;
 use rayon::prelude::*;
 
@@ -170,14 +170,6 @@ fn box_distance2(q: [f32; 3], lo: [f32; 3], hi: [f32; 3]) -> f32 {
 #[inline]
 fn reach2(best: f64) -> f32 {
     (best * best * (1.0 + 1e-5)) as f32 + f32::MIN_POSITIVE
-}
-
-/// Box of a triangle's corners.
-#[inline]
-fn triangle_box(t: &[[f32; 3]; 3]) -> ([f32; 3], [f32; 3]) {
-    let lo = std::array::from_fn(|a| t[0][a].min(t[1][a]).min(t[2][a]));
-    let hi = std::array::from_fn(|a| t[0][a].max(t[1][a]).max(t[2][a]));
-    (lo, hi)
 }
 
 /// How a node splits `n` triangles: the sizes of its up to four children, in order (two

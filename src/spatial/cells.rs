@@ -64,24 +64,25 @@ impl TriangleCells {
         let cell_of =
             |x: f64, a: usize| (((x - lo[a]) / cell).floor().max(0.0) as usize).min(dims[a] - 1);
         let range = |t: &[[f32; 3]; 3]| -> [std::ops::RangeInclusive<usize>; 3] {
-            std::array::from_fn(|a| {
-                let mn = t.iter().map(|q| q[a]).fold(f32::INFINITY, f32::min);
-                let mx = t.iter().map(|q| q[a]).fold(f32::NEG_INFINITY, f32::max);
-                cell_of(mn as f64, a)..=cell_of(mx as f64, a)
-            })
+            let (mn, mx) = super::triangle_box(t);
+            std::array::from_fn(|a| cell_of(mn[a] as f64, a)..=cell_of(mx[a] as f64, a))
         };
         let linear = |i: usize, j: usize, k: usize| (k * dims[1] + j) * dims[0] + i;
         let n_cells = dims[0] * dims[1] * dims[2];
-        let mut offsets = vec![0u32; n_cells + 1];
-        for t in triangles {
+        // Every cell a triangle's box overlaps, by linear index.
+        let for_each_cell = |t: &[[f32; 3]; 3], visit: &mut dyn FnMut(usize)| {
             let [ri, rj, rk] = range(t);
             for k in rk {
                 for j in rj.clone() {
                     for i in ri.clone() {
-                        offsets[linear(i, j, k) + 1] += 1;
+                        visit(linear(i, j, k));
                     }
                 }
             }
+        };
+        let mut offsets = vec![0u32; n_cells + 1];
+        for t in triangles {
+            for_each_cell(t, &mut |c| offsets[c + 1] += 1);
         }
         for i in 1..offsets.len() {
             offsets[i] += offsets[i - 1];
@@ -89,16 +90,10 @@ impl TriangleCells {
         let mut cursor = offsets[..n_cells].to_vec();
         let mut ids = vec![0u32; offsets[n_cells] as usize];
         for (f, t) in triangles.iter().enumerate() {
-            let [ri, rj, rk] = range(t);
-            for k in rk {
-                for j in rj.clone() {
-                    for i in ri.clone() {
-                        let c = &mut cursor[linear(i, j, k)];
-                        ids[*c as usize] = f as u32;
-                        *c += 1;
-                    }
-                }
-            }
+            for_each_cell(t, &mut |c| {
+                ids[cursor[c] as usize] = f as u32;
+                cursor[c] += 1;
+            });
         }
         let scale = (0..3)
             .map(|a| lo[a].abs().max(hi[a].abs()))

@@ -115,6 +115,14 @@ pub fn closest_point_and_region(p: V3, a: V3, b: V3, c: V3) -> (V3, TriangleRegi
     )
 }
 
+/// Box of a triangle's corners (mm): its lowest and highest coordinate on each axis.
+#[inline]
+pub(crate) fn triangle_box(t: &[[f32; 3]; 3]) -> ([f32; 3], [f32; 3]) {
+    let lo = std::array::from_fn(|a| t[0][a].min(t[1][a]).min(t[2][a]));
+    let hi = std::array::from_fn(|a| t[0][a].max(t[1][a]).max(t[2][a]));
+    (lo, hi)
+}
+
 /// Distance (mm) from p to triangle (a, b, c).
 pub fn point_triangle_distance(p: [f32; 3], t: [[f32; 3]; 3]) -> f64 {
     point_triangle_distance2(p, t).sqrt()
