@@ -102,29 +102,21 @@ fn space_comment(text: &[u8]) -> Vec<String> {
 }
 
 fn decode_binary(bytes: &[u8]) -> DecodeResult {
-    use rayon::prelude::*;
     let n = u32::from_le_bytes([bytes[80], bytes[81], bytes[82], bytes[83]]) as usize;
     check_size(n.saturating_mul(3), n)?;
     // Corner c of the file (the size check above guarantees every record is there).
     let offset = |c: usize| HEADER + 4 + RECORD * (c / 3) + 12 + 12 * (c % 3);
     let corner = |c: usize| -> [f32; 3] {
-        let o = offset(c);
+        // One bounds check for the corner's 12 bytes; the reads in it are then known in range.
+        let r = &bytes[offset(c)..offset(c) + 12];
         std::array::from_fn(|a| {
-            let b = o + 4 * a;
-            f32::from_le_bytes([bytes[b], bytes[b + 1], bytes[b + 2], bytes[b + 3]])
+            f32::from_le_bytes([r[4 * a], r[4 * a + 1], r[4 * a + 2], r[4 * a + 3]])
         })
     };
-    // The first corner with a NaN or infinite coordinate, by stretches of corners (a search
-    // item by item costs more than the test).
-    const STRETCH: usize = 1 << 16;
-    let bad = |c: &usize| !corner(*c).iter().all(|v| v.is_finite());
-    if let Some(c) = (0..(3 * n).div_ceil(STRETCH))
-        .into_par_iter()
-        .find_map_first(|k| (k * STRETCH..((k + 1) * STRETCH).min(3 * n)).find(bad))
-    {
+    let (positions, triangles) = super::weld::weld_triangles(n, corner).map_err(|c| {
         let p = corner(c);
         let a = (0..3).find(|&a| !p[a].is_finite()).unwrap_or(0);
-        return Err(ReadErrorKind::NonFinite {
+        ReadErrorKind::NonFinite {
             place: format!(
                 "triangle {} corner {} (byte {})",
                 c / 3,
@@ -132,13 +124,8 @@ fn decode_binary(bytes: &[u8]) -> DecodeResult {
                 offset(c) + 4 * a
             ),
             value: p[a] as f64,
-        });
-    }
-    let (positions, vertex_of) = super::weld::weld_corners(3 * n, corner);
-    let triangles: Vec<[u32; 3]> = vertex_of
-        .par_chunks_exact(3)
-        .map(|t| [t[0], t[1], t[2]])
-        .collect();
+        }
+    })?;
     Ok(LoadedMesh {
         mesh: Mesh::from_checked_parts(positions, triangles),
         meta: MeshMeta {

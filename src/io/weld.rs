@@ -3,23 +3,28 @@
 //! appearance. Parallel and deterministic: the result is the one a sequential hash-map pass
 //! gives, for any thread count.
 //!
-//! Corners go to shards by a hash of their coordinates, each chunk of the file keeping its own
-//! list per shard (so a shard's corners stay in file order and nothing is scattered). Each
-//! shard numbers its distinct coordinates with a hash map small enough to stay in cache; the
-//! global vertex numbers are the ranks of the first corners in file order (a bitmap with
-//! per-word counts), and a last walk in file order reads every corner's vertex back from its
-//! shard.
+//! 1. Each chunk of the file welds its own corners with a hash map that stays in cache. Files
+//!    list a vertex's triangles close together, so a chunk's distinct coordinates (its
+//!    *entries*) are about a fifth of its corners (3.2 M entries for 15 M corners on the 5 M
+//!    triangle phantom). The same pass finds the first non-finite coordinate.
+//! 2. Entries go to shards by a hash of their coordinates (each chunk keeping its own list per
+//!    shard, in its order). Each shard numbers its distinct coordinates with a small map, in
+//!    chunk order, so a vertex's first entry holds its first corner in the file.
+//! 3. The global vertex numbers are the ranks of the first corners in file order (a bitmap
+//!    with per-word counts), and a last walk per chunk turns its corners' local numbers into
+//!    vertex numbers.
 
 use rayon::prelude::*;
 use rustc_hash::FxHashMap;
 use std::hash::{Hash, Hasher};
-use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU64, Ordering};
 
-/// Shards of the corner set: 256 keeps each shard's map near 10 k vertices for a 2.5 M vertex
+/// Shards of the entry set: 256 keeps each shard's map near 10 k vertices for a 2.5 M vertex
 /// mesh.
 const SHARDS: usize = 256;
-/// Corners per parallel chunk in the passes over all corners.
-const CHUNK: usize = 1 << 16;
+/// Triangles per chunk: 65,535 corners, so a chunk's local numbers fit below 2^16 and its map
+/// stays in cache.
+const CHUNK_TRIANGLES: usize = 21_845;
 
 /// The welding key of a corner: its coordinates' bits, with -0 turned into +0. Hashed as one
 /// mixed word (one multiply in the map's hasher instead of three rounds).
@@ -48,62 +53,59 @@ impl Hash for Key {
     }
 }
 
-/// Welds `n` corners (`corner(c)` gives corner c's coordinates): the vertex positions in
-/// order of first appearance, and each corner's vertex number. `n` must fit in u32.
-pub(crate) fn weld_corners(
-    n: usize,
+/// One chunk's distinct coordinates after step 1, grouped by shard (the chunk's order kept
+/// within a shard), and each entry's shard in the chunk's order.
+struct ChunkEntries {
+    /// Per shard, where its entries start in `first` and `positions` (SHARDS + 1 bounds).
+    start: Vec<u32>,
+    /// The file index of each entry's first corner, grouped by shard.
+    first: Vec<u32>,
+    /// Each entry's coordinates, grouped by shard.
+    positions: Vec<[f32; 3]>,
+    /// Each entry's shard, in the chunk's order (local numbers).
+    shard_of: Vec<u8>,
+}
+
+/// Vertex positions in order of first appearance and each triangle's vertices.
+pub(crate) type Welded = (Vec<[f32; 3]>, Vec<[u32; 3]>);
+
+/// Welds `n_triangles` triangles (`corner(c)` gives the coordinates of corner c, corner
+/// `3 t + k` being corner k of triangle t): the vertex positions in order of first appearance
+/// and each triangle's vertices. `Err(c)` names the first corner with a NaN or infinite
+/// coordinate. `3 n_triangles` must fit in u32.
+pub(crate) fn weld_triangles(
+    n_triangles: usize,
     corner: impl Fn(usize) -> [f32; 3] + Sync,
-) -> (Vec<[f32; 3]>, Vec<u32>) {
-    let chunks = n.div_ceil(CHUNK);
-    let range = |c: usize| c * CHUNK..((c + 1) * CHUNK).min(n);
-    // Each corner's shard; then per chunk, its corners grouped by shard (file order within a
-    // shard), in place of the chunk's stretch of two flat arrays. Flat and advised huge, so
-    // the hundreds of MB cost a few hundred page faults, not tens of thousands.
-    let mut shard_of: Vec<u8> = crate::hugepages::zeroed_vec(n);
-    let mut grouped: Vec<u32> = crate::hugepages::zeroed_vec(n);
-    let mut grouped_at: Vec<[f32; 3]> = crate::hugepages::zeroed_vec(n);
-    // Per chunk: where each shard's entries start in its stretch (SHARDS + 1 bounds).
-    let starts: Vec<Vec<u32>> = shard_of
-        .par_chunks_mut(CHUNK)
-        .zip(grouped.par_chunks_mut(CHUNK))
-        .zip(grouped_at.par_chunks_mut(CHUNK))
+) -> Result<Welded, usize> {
+    let n = 3 * n_triangles;
+    // Step 1: per chunk, its corners' local numbers (in the output, replaced in step 3) and
+    // its entries.
+    let mut triangles: Vec<[u32; 3]> = crate::hugepages::zeroed_vec(n_triangles);
+    let chunks: Vec<Result<ChunkEntries, usize>> = triangles
+        .par_chunks_mut(CHUNK_TRIANGLES)
         .enumerate()
-        .map(|(c, ((shards, corners), positions))| {
-            for (slot, i) in shards.iter_mut().zip(range(c)) {
-                *slot = Key::of(corner(i)).shard() as u8;
-            }
-            let mut start = vec![0u32; SHARDS + 1];
-            for &s in shards.iter() {
-                start[s as usize + 1] += 1;
-            }
-            for s in 0..SHARDS {
-                start[s + 1] += start[s];
-            }
-            let mut next = start.clone();
-            for (i, &s) in range(c).zip(shards.iter()) {
-                let at = next[s as usize] as usize;
-                corners[at] = i as u32;
-                positions[at] = corner(i);
-                next[s as usize] += 1;
-            }
-            start
-        })
+        .map_init(
+            // Sized for a chunk, or for the whole file when it is smaller.
+            || FxHashMap::<Key, u32>::with_capacity_and_hasher(n.min(1 << 15), Default::default()),
+            |seen, (c, out)| weld_chunk(seen, 3 * c * CHUNK_TRIANGLES, out, &corner),
+        )
         .collect();
-    // Per shard: each corner's local vertex (in the shard's file order) and the first corner
-    // and position of each local vertex. First corners are marked in a bitmap over all
-    // corners.
+    let chunks: Vec<ChunkEntries> = chunks.into_iter().collect::<Result<_, _>>()?;
+    // Step 2: per shard, each entry's local vertex (in the shard's order), and the first
+    // corner and position of each local vertex. First corners are marked in a bitmap over
+    // all corners.
     let words = n.div_ceil(64);
     let firsts_bits: Vec<AtomicU64> = (0..words).map(|_| AtomicU64::new(0)).collect();
-    // Each corner's local vertex, shard after shard (one flat array, split by shard sizes).
     let sizes: Vec<usize> = (0..SHARDS)
         .map(|s| {
-            starts
+            chunks
                 .iter()
-                .map(|start| (start[s + 1] - start[s]) as usize)
+                .map(|e| (e.start[s + 1] - e.start[s]) as usize)
                 .sum()
         })
         .collect();
-    let mut local_all: Vec<u32> = crate::hugepages::zeroed_vec(n);
+    // Each entry's local vertex, shard after shard (one flat array, split by shard sizes).
+    let mut local_all: Vec<u32> = crate::hugepages::zeroed_vec(sizes.iter().sum());
     let mut local_parts: Vec<&mut [u32]> = Vec::with_capacity(SHARDS);
     let mut rest = local_all.as_mut_slice();
     for &size in &sizes {
@@ -111,23 +113,21 @@ pub(crate) fn weld_corners(
         local_parts.push(part);
         rest = tail;
     }
-    let shards: Vec<(Vec<u32>, Vec<[f32; 3]>)> = local_parts
+    let shards: Vec<Vec<u32>> = local_parts
         .into_par_iter()
         .enumerate()
         .map(|(s, local)| {
             let mut seen: FxHashMap<Key, u32> =
-                FxHashMap::with_capacity_and_hasher(local.len() / 4 + 1, Default::default());
+                FxHashMap::with_capacity_and_hasher(local.len() / 2 + 1, Default::default());
             let mut slots = local.iter_mut();
             let mut first = Vec::new();
-            let mut positions = Vec::new();
-            for (c, start) in starts.iter().enumerate() {
-                let own = c * CHUNK + start[s] as usize..c * CHUNK + start[s + 1] as usize;
-                for (&c, &p) in (&grouped)[own.clone()].iter().zip(&(&grouped_at)[own]) {
+            for e in &chunks {
+                let own = e.start[s] as usize..e.start[s + 1] as usize;
+                for (&c, &p) in e.first[own.clone()].iter().zip(&e.positions[own]) {
                     let next = first.len() as u32;
                     let v = *seen.entry(Key::of(p)).or_insert(next);
                     if v == next {
                         first.push(c);
-                        positions.push(p);
                         firsts_bits[c as usize / 64].fetch_or(1 << (c % 64), Ordering::Relaxed);
                     }
                     if let Some(slot) = slots.next() {
@@ -135,10 +135,9 @@ pub(crate) fn weld_corners(
                     }
                 }
             }
-            (first, positions)
+            first
         })
         .collect();
-    drop((grouped, grouped_at));
     let shard_offset: Vec<usize> = sizes
         .iter()
         .scan(0, |at, &size| {
@@ -155,59 +154,129 @@ pub(crate) fn weld_corners(
         before_word.push(count);
         count += w.count_ones();
     }
-    let n_vertices = count as usize;
+    before_word.push(count);
     let rank = |c: u32| {
         let (w, b) = (c as usize / 64, c % 64);
         before_word[w] + (firsts_bits[w] & ((1u64 << b) - 1)).count_ones()
     };
-    // Per shard, its local vertices' global numbers; positions scattered to them (each vertex
-    // is written by exactly one shard).
+    // Per shard, its local vertices' global numbers.
     let global: Vec<Vec<u32>> = shards
         .par_iter()
-        .map(|(first, _)| first.iter().map(|&c| rank(c)).collect())
+        .map(|first| first.iter().map(|&c| rank(c)).collect())
         .collect();
-    let slots: Vec<[AtomicU32; 3]> = (0..n_vertices)
-        .map(|_| [AtomicU32::new(0), AtomicU32::new(0), AtomicU32::new(0)])
-        .collect();
-    shards
-        .par_iter()
-        .zip(&global)
-        .for_each(|((_, positions), global)| {
-            for (&g, p) in global.iter().zip(positions) {
-                for (slot, x) in slots[g as usize].iter().zip(p) {
-                    slot.store(x.to_bits(), Ordering::Relaxed);
+    // The positions: the first corners in file order, read back from the file by stretches
+    // of the bitmap (each stretch fills its own run of vertices).
+    const WORDS: usize = 4096;
+    let mut positions: Vec<[f32; 3]> = crate::hugepages::zeroed_vec(count as usize);
+    let mut stretches: Vec<(usize, &mut [[f32; 3]])> = Vec::new();
+    let mut rest = positions.as_mut_slice();
+    for w in (0..words).step_by(WORDS) {
+        let end = (w + WORDS).min(words);
+        let (head, tail) = rest.split_at_mut((before_word[end] - before_word[w]) as usize);
+        stretches.push((w, head));
+        rest = tail;
+    }
+    stretches.into_par_iter().for_each(|(w0, out)| {
+        let mut out = out.iter_mut();
+        for (w, &bits) in firsts_bits.iter().enumerate().skip(w0).take(WORDS) {
+            let mut bits = bits;
+            while bits != 0 {
+                let c = w * 64 + bits.trailing_zeros() as usize;
+                if let Some(o) = out.next() {
+                    *o = corner(c);
                 }
+                bits &= bits - 1;
             }
-        });
-    let positions: Vec<[f32; 3]> = slots
-        .into_par_iter()
-        .map(|s| s.map(|x| f32::from_bits(x.into_inner())))
-        .collect();
-    // Where each chunk's corners start in each shard's list.
-    let mut part_start = vec![[0u32; SHARDS]; chunks];
+        }
+    });
+    // Where each chunk's entries start in each shard's list.
+    let mut part_start = vec![[0u32; SHARDS]; chunks.len()];
     let mut at = [0u32; SHARDS];
-    for (c, start) in starts.iter().enumerate() {
+    for (c, e) in chunks.iter().enumerate() {
         part_start[c] = at;
         for (s, a) in at.iter_mut().enumerate() {
-            *a += start[s + 1] - start[s];
+            *a += e.start[s + 1] - e.start[s];
         }
     }
-    // Back in file order: each corner's vertex, read from its shard.
+    // Step 3: per chunk, each entry's vertex, read from its shard, and each corner's vertex
+    // from its entry.
     let (global, local_all) = (&global, &local_all);
-    let mut vertex_of: Vec<u32> = crate::hugepages::zeroed_vec(n);
-    vertex_of
-        .par_chunks_mut(CHUNK)
-        .zip(shard_of.par_chunks(CHUNK))
+    triangles
+        .par_chunks_mut(CHUNK_TRIANGLES)
+        .zip(&chunks)
         .zip(&part_start)
-        .for_each(|((out, shards), start)| {
+        .for_each_init(Vec::new, |vertex_of, ((out, e), start)| {
             let mut next = *start;
-            for (v, &s) in out.iter_mut().zip(shards) {
+            vertex_of.clear();
+            vertex_of.extend(e.shard_of.iter().map(|&s| {
                 let s = s as usize;
-                *v = global[s][local_all[shard_offset[s] + next[s] as usize] as usize];
+                let v = global[s][local_all[shard_offset[s] + next[s] as usize] as usize];
                 next[s] += 1;
+                v
+            }));
+            for t in out.iter_mut() {
+                *t = t.map(|local| vertex_of[local as usize]);
             }
         });
-    (positions, vertex_of)
+    Ok((positions, triangles))
+}
+
+/// Step 1 for the chunk whose first corner is `first`: writes each corner's local number
+/// (order of first appearance in the chunk) into `out` and returns the chunk's entries, or
+/// the first corner with a non-finite coordinate.
+fn weld_chunk(
+    seen: &mut FxHashMap<Key, u32>,
+    first: usize,
+    out: &mut [[u32; 3]],
+    corner: &impl Fn(usize) -> [f32; 3],
+) -> Result<ChunkEntries, usize> {
+    seen.clear();
+    let mut entry_first: Vec<u32> = Vec::new();
+    let mut entry_at: Vec<[f32; 3]> = Vec::new();
+    let mut finite = true;
+    for (t, tri) in out.iter_mut().enumerate() {
+        for (k, local) in tri.iter_mut().enumerate() {
+            let c = first + 3 * t + k;
+            let p = corner(c);
+            finite &= p.iter().all(|v| v.is_finite());
+            let next = entry_first.len() as u32;
+            *local = *seen.entry(Key::of(p)).or_insert(next);
+            if *local == next {
+                entry_first.push(c as u32);
+                entry_at.push(p);
+            }
+        }
+    }
+    if !finite {
+        let bad = (first..first + 3 * out.len())
+            .find(|&c| !corner(c).iter().all(|v| v.is_finite()))
+            .unwrap_or(first);
+        return Err(bad);
+    }
+    // The entries grouped by shard, in the chunk's order within a shard.
+    let shard_of: Vec<u8> = entry_at.iter().map(|&p| Key::of(p).shard() as u8).collect();
+    let mut start = vec![0u32; SHARDS + 1];
+    for &s in &shard_of {
+        start[s as usize + 1] += 1;
+    }
+    for s in 0..SHARDS {
+        start[s + 1] += start[s];
+    }
+    let mut next = start.clone();
+    let mut grouped_first = vec![0u32; entry_first.len()];
+    let mut grouped_at = vec![[0.0f32; 3]; entry_at.len()];
+    for ((&s, &c), &p) in shard_of.iter().zip(&entry_first).zip(&entry_at) {
+        let at = next[s as usize] as usize;
+        grouped_first[at] = c;
+        grouped_at[at] = p;
+        next[s as usize] += 1;
+    }
+    Ok(ChunkEntries {
+        start,
+        first: grouped_first,
+        positions: grouped_at,
+        shard_of,
+    })
 }
 
 #[cfg(test)]
@@ -230,13 +299,21 @@ mod tests {
         (positions, numbers)
     }
 
+    /// Welds corners given as a flat list (a multiple of three).
+    fn weld(corners: &[[f32; 3]]) -> Result<(Vec<[f32; 3]>, Vec<u32>), usize> {
+        let (p, t) = weld_triangles(corners.len() / 3, |c| corners[c])?;
+        Ok((p, t.into_iter().flatten().collect()))
+    }
+
     #[test]
     fn parallel_welding_matches_the_sequential_pass_on_random_soups() {
         let mut rng = fastrand::Rng::with_seed(11);
         for round in 0..40 {
-            // From a handful to a few hundred thousand corners, drawn from a small pool so
-            // most repeat; some coordinates are -0.
-            let n = [0, 1, 3, 7, 1000, 70_000, 250_000][round % 7];
+            // From a handful to a few hundred thousand corners (several chunks), drawn from a
+            // small pool so most repeat; some coordinates are -0. Odd rounds draw from a
+            // window that slides along the pool, as files list neighbouring triangles
+            // together, so chunks weld most of their corners locally.
+            let n = [0, 3, 6, 21, 1002, 70_002, 250_002][round % 7];
             let pool: Vec<[f32; 3]> = (0..(n / 5).max(1))
                 .map(|_| {
                     std::array::from_fn(|_| match rng.u8(..10) {
@@ -246,8 +323,17 @@ mod tests {
                     })
                 })
                 .collect();
-            let corners: Vec<[f32; 3]> = (0..n).map(|_| pool[rng.usize(..pool.len())]).collect();
-            let (p, v) = weld_corners(n, |c| corners[c]);
+            let corners: Vec<[f32; 3]> = (0..n)
+                .map(|c| {
+                    let i = if round % 2 == 1 {
+                        (c / 5 + rng.usize(..50)).min(pool.len() - 1)
+                    } else {
+                        rng.usize(..pool.len())
+                    };
+                    pool[i]
+                })
+                .collect();
+            let (p, v) = weld(&corners).unwrap();
             let (q, w) = weld_sequential(&corners);
             assert_eq!(v, w, "round {round}: vertex numbers");
             assert_eq!(
@@ -259,21 +345,43 @@ mod tests {
     }
 
     #[test]
+    fn the_first_non_finite_corner_is_named() {
+        let mut rng = fastrand::Rng::with_seed(3);
+        let clean: Vec<[f32; 3]> = (0..200_001)
+            .map(|_| std::array::from_fn(|_| rng.u8(..30) as f32))
+            .collect();
+        assert!(weld(&clean).is_ok());
+        for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+            for _ in 0..6 {
+                // One to three bad corners, anywhere (often in different chunks).
+                let mut corners = clean.clone();
+                let at: Vec<usize> = (0..rng.usize(1..4))
+                    .map(|_| rng.usize(..corners.len()))
+                    .collect();
+                for &c in &at {
+                    corners[c][rng.usize(..3)] = bad;
+                }
+                assert_eq!(weld(&corners), Err(*at.iter().min().unwrap()));
+            }
+        }
+    }
+
+    #[test]
     fn welding_does_not_depend_on_the_thread_count() {
         let mut rng = fastrand::Rng::with_seed(5);
-        let corners: Vec<[f32; 3]> = (0..200_000)
+        let corners: Vec<[f32; 3]> = (0..200_001)
             .map(|_| std::array::from_fn(|_| rng.u8(..20) as f32))
             .collect();
         let one = rayon::ThreadPoolBuilder::new()
             .num_threads(1)
             .build()
             .unwrap()
-            .install(|| weld_corners(corners.len(), |c| corners[c]));
+            .install(|| weld(&corners));
         let three = rayon::ThreadPoolBuilder::new()
             .num_threads(3)
             .build()
             .unwrap()
-            .install(|| weld_corners(corners.len(), |c| corners[c]));
+            .install(|| weld(&corners));
         assert_eq!(one, three);
     }
 }
