@@ -18,6 +18,7 @@
 //! what the copy contributes).
 
 use crate::mesh::geometry::{face_normals, triangle_area_vector};
+use crate::mesh::umbrella::umbrella_pass;
 use crate::mesh::{Mesh, Topology};
 use crate::metrics::normal_curvature::TurnLimits;
 use rayon::prelude::*;
@@ -203,35 +204,45 @@ pub fn detect_caps(
     params: &CapParams,
 ) -> CapDetection {
     let adjacency = FaceNeighbours::build(mesh, topology);
-    let mut detection = caps_of(
-        mesh,
-        topology,
-        &adjacency,
-        staircase_reach,
-        params,
-        f32::INFINITY,
+    // The two looks are independent and mostly serial (flood fills, growth): they run side by
+    // side, and their results are merged in the same order as ever.
+    let (mut detection, found) = rayon::join(
+        || {
+            caps_of(
+                mesh,
+                topology,
+                &adjacency,
+                staircase_reach,
+                params,
+                f32::INFINITY,
+            )
+        },
+        || {
+            (params.smoothed_copy_iterations > 0).then(|| {
+                let copy = Mesh::from_checked_parts(
+                    low_pass(mesh, topology, params.smoothed_copy_iterations),
+                    mesh.triangles().to_vec(),
+                );
+                caps_of(
+                    &copy,
+                    topology,
+                    &adjacency,
+                    staircase_reach,
+                    params,
+                    params.smoothed_copy_flat_deg_per_mm,
+                )
+            })
+        },
     );
-    if params.smoothed_copy_iterations == 0 {
+    let Some(found) = found else {
         return detection;
-    }
-    let mut copy = mesh.clone();
-    let smoothed = low_pass(mesh, topology, params.smoothed_copy_iterations);
-    copy.positions_mut().copy_from_slice(&smoothed);
+    };
     let mut taken = vec![false; mesh.n_triangles()];
     for c in &detection.caps {
         for &f in &c.faces {
             taken[f as usize] = true;
         }
     }
-    let flat_per_mm = params.smoothed_copy_flat_deg_per_mm;
-    let found = caps_of(
-        &copy,
-        topology,
-        &adjacency,
-        staircase_reach,
-        params,
-        flat_per_mm,
-    );
     for mut cap in found.caps {
         if cap.faces.iter().any(|&f| taken[f as usize]) {
             continue;
@@ -251,32 +262,22 @@ pub fn detect_caps(
 /// Positions after `iterations` uniform umbrella steps (lambda 0.5) with rim and non-manifold
 /// vertices fixed: a low-pass copy on which a terraced plane is flat.
 fn low_pass(mesh: &Mesh, topology: &Topology, iterations: usize) -> Vec<[f32; 3]> {
-    let mut fixed = vec![false; mesh.n_vertices()];
+    let (offsets, neighbors) = topology.neighbor_csr();
+    // Step scale 1, or 0 where a vertex stays: on a rim or non-manifold edge, or isolated.
+    let mut scale: Vec<f32> = offsets
+        .windows(2)
+        .map(|w| if w[0] == w[1] { 0.0 } else { 1.0 })
+        .collect();
     for (e, &n) in topology.edges().iter().zip(topology.edge_n_faces()) {
         if n != 2 {
-            fixed[e[0] as usize] = true;
-            fixed[e[1] as usize] = true;
+            scale[e[0] as usize] = 0.0;
+            scale[e[1] as usize] = 0.0;
         }
     }
     let mut a = mesh.positions().to_vec();
     let mut b = a.clone();
     for _ in 0..iterations {
-        b.par_iter_mut().enumerate().for_each(|(v, out)| {
-            let ring = topology.neighbors(v);
-            let p = a[v];
-            if fixed[v] || ring.is_empty() {
-                *out = p;
-                return;
-            }
-            let mut sum = [0.0f32; 3];
-            for &u in ring {
-                for k in 0..3 {
-                    sum[k] += a[u as usize][k];
-                }
-            }
-            let inv = 1.0 / ring.len() as f32;
-            *out = std::array::from_fn(|k| p[k] + 0.5 * (sum[k] * inv - p[k]));
-        });
+        umbrella_pass(&a, &mut b, offsets, neighbors, &scale, 0.5, None);
         std::mem::swap(&mut a, &mut b);
     }
     a

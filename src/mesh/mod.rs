@@ -8,6 +8,7 @@ pub mod geometry;
 pub mod manifold;
 pub mod order;
 pub mod topology;
+pub mod umbrella;
 
 pub use topology::Topology;
 

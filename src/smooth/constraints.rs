@@ -4,7 +4,8 @@
 //! (cell-edge, §4.3) or the diamond |dx|/hx + |dy|/hy + |dz|/hz <= 1/2 (§4.4). Iteration stops
 //! when the largest step falls below a threshold (the paper uses 0.002).
 
-use super::{max_step, neighbour_mean, CHUNK};
+use super::{max_step, CHUNK};
+use crate::mesh::umbrella::neighbour_mean;
 use crate::mesh::Mesh;
 use rayon::prelude::*;
 

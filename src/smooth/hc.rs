@@ -10,7 +10,8 @@
 //! -0.086 %; now -0.070 %).
 //! Weight 0 still keeps a vertex exactly in place.
 
-use super::{max_step, neighbour_mean, CHUNK};
+use super::{max_step, CHUNK};
+use crate::mesh::umbrella::neighbour_mean;
 use rayon::prelude::*;
 
 pub(super) fn hc(

@@ -4,7 +4,8 @@
 //! cotangents) cannot flip the operator and slivers cannot blow it up; a vertex whose weights
 //! vanish falls back to the umbrella operator.
 
-use super::{max_step, neighbour_mean, CHUNK};
+use super::{max_step, CHUNK};
+use crate::mesh::umbrella::neighbour_mean;
 use crate::mesh::{Mesh, Topology};
 use rayon::prelude::*;
 

@@ -19,8 +19,8 @@ use crate::mesh::{Mesh, Topology};
 use crate::weights::VertexWeights;
 use serde::Serialize;
 
-/// Vertices per parallel task in the smoothing kernels.
-pub(crate) const CHUNK: usize = 2048;
+/// Vertices per parallel task in the smoothing kernels (the umbrella operator's).
+pub(crate) const CHUNK: usize = crate::mesh::umbrella::CHUNK;
 
 /// A smoother and its parameters.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -448,20 +448,6 @@ pub fn boundary_vertices(topology: &Topology) -> Vec<bool> {
         }
     }
     fixed
-}
-
-/// Mean of `values` over the given neighbour indices (callers ensure the list is not empty).
-#[inline]
-pub(crate) fn neighbour_mean(values: &[[f32; 3]], neighbors: &[u32]) -> [f32; 3] {
-    let mut sum = [0.0f32; 3];
-    for &n in neighbors {
-        let q = values[n as usize];
-        sum[0] += q[0];
-        sum[1] += q[1];
-        sum[2] += q[2];
-    }
-    let inv = 1.0 / neighbors.len() as f32;
-    [sum[0] * inv, sum[1] * inv, sum[2] * inv]
 }
 
 /// Largest per-vertex distance between two position buffers (mm); order-independent.
