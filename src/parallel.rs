@@ -24,6 +24,22 @@ where
     block_sums.iter().sum()
 }
 
+/// Splits `data` into consecutive mutable slices of the given lengths (which must not add up
+/// to more than `data.len()`), for filling disjoint stretches of one array in parallel.
+pub(crate) fn split_lengths<T>(
+    lengths: impl Iterator<Item = usize>,
+    data: &mut [T],
+) -> Vec<&mut [T]> {
+    let mut parts = Vec::new();
+    let mut rest = data;
+    for len in lengths {
+        let (head, tail) = std::mem::take(&mut rest).split_at_mut(len);
+        parts.push(head);
+        rest = tail;
+    }
+    parts
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -224,14 +224,7 @@ fn concat<T: Copy + Default + Send + Sync>(
 ) -> Vec<T> {
     use rayon::prelude::*;
     let mut out = crate::hugepages::zeroed_vec(lens.iter().sum());
-    let mut stretches = Vec::with_capacity(lens.len());
-    let mut rest = out.as_mut_slice();
-    for &n in lens {
-        let (stretch, tail) = rest.split_at_mut(n);
-        stretches.push(stretch);
-        rest = tail;
-    }
-    stretches
+    crate::parallel::split_lengths(lens.iter().copied(), &mut out)
         .into_par_iter()
         .enumerate()
         .for_each(|(s, stretch)| fill(s, stretch));

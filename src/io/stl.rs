@@ -108,7 +108,8 @@ fn decode_binary(bytes: &[u8]) -> DecodeResult {
     let offset = |c: usize| HEADER + 4 + RECORD * (c / 3) + 12 + 12 * (c % 3);
     let corner = |c: usize| -> [f32; 3] {
         // One bounds check for the corner's 12 bytes; the reads in it are then known in range.
-        let r = &bytes[offset(c)..offset(c) + 12];
+        let o = offset(c);
+        let r = &bytes[o..o + 12];
         std::array::from_fn(|a| {
             f32::from_le_bytes([r[4 * a], r[4 * a + 1], r[4 * a + 2], r[4 * a + 3]])
         })

@@ -14,6 +14,7 @@
 //!    with per-word counts), and a last walk per chunk turns its corners' local numbers into
 //!    vertex numbers.
 
+use crate::parallel::split_lengths;
 use rayon::prelude::*;
 use rustc_hash::FxHashMap;
 use std::hash::{Hash, Hasher};
@@ -91,9 +92,8 @@ pub(crate) fn weld_triangles(
         )
         .collect();
     let chunks: Vec<ChunkEntries> = chunks.into_iter().collect::<Result<_, _>>()?;
-    // Step 2: per shard, each entry's local vertex (in the shard's order), and the first
-    // corner and position of each local vertex. First corners are marked in a bitmap over
-    // all corners.
+    // Step 2: per shard, each entry's local vertex (in the shard's order) and the first corner
+    // of each local vertex. First corners are marked in a bitmap over all corners.
     let words = n.div_ceil(64);
     let firsts_bits: Vec<AtomicU64> = (0..words).map(|_| AtomicU64::new(0)).collect();
     let sizes: Vec<usize> = (0..SHARDS)
@@ -106,14 +106,7 @@ pub(crate) fn weld_triangles(
         .collect();
     // Each entry's local vertex, shard after shard (one flat array, split by shard sizes).
     let mut local_all: Vec<u32> = crate::hugepages::zeroed_vec(sizes.iter().sum());
-    let mut local_parts: Vec<&mut [u32]> = Vec::with_capacity(SHARDS);
-    let mut rest = local_all.as_mut_slice();
-    for &size in &sizes {
-        let (part, tail) = rest.split_at_mut(size);
-        local_parts.push(part);
-        rest = tail;
-    }
-    let shards: Vec<Vec<u32>> = local_parts
+    let shards: Vec<Vec<u32>> = split_lengths(sizes.iter().copied(), &mut local_all)
         .into_par_iter()
         .enumerate()
         .map(|(s, local)| {
@@ -168,15 +161,12 @@ pub(crate) fn weld_triangles(
     // of the bitmap (each stretch fills its own run of vertices).
     const WORDS: usize = 4096;
     let mut positions: Vec<[f32; 3]> = crate::hugepages::zeroed_vec(count as usize);
-    let mut stretches: Vec<(usize, &mut [[f32; 3]])> = Vec::new();
-    let mut rest = positions.as_mut_slice();
-    for w in (0..words).step_by(WORDS) {
-        let end = (w + WORDS).min(words);
-        let (head, tail) = rest.split_at_mut((before_word[end] - before_word[w]) as usize);
-        stretches.push((w, head));
-        rest = tail;
-    }
-    stretches.into_par_iter().for_each(|(w0, out)| {
+    let firsts_per_stretch = (0..words)
+        .step_by(WORDS)
+        .map(|w| (before_word[(w + WORDS).min(words)] - before_word[w]) as usize);
+    let stretches = split_lengths(firsts_per_stretch, &mut positions);
+    stretches.into_par_iter().enumerate().for_each(|(k, out)| {
+        let w0 = k * WORDS;
         let mut out = out.iter_mut();
         for (w, &bits) in firsts_bits.iter().enumerate().skip(w0).take(WORDS) {
             let mut bits = bits;
@@ -372,16 +362,13 @@ mod tests {
         let corners: Vec<[f32; 3]> = (0..200_001)
             .map(|_| std::array::from_fn(|_| rng.u8(..20) as f32))
             .collect();
-        let one = rayon::ThreadPoolBuilder::new()
-            .num_threads(1)
-            .build()
-            .unwrap()
-            .install(|| weld(&corners));
-        let three = rayon::ThreadPoolBuilder::new()
-            .num_threads(3)
-            .build()
-            .unwrap()
-            .install(|| weld(&corners));
+        let [one, three] = [1, 3].map(|threads| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| weld(&corners))
+        });
         assert_eq!(one, three);
     }
 }

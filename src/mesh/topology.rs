@@ -6,6 +6,7 @@
 //! adjacency, since they have no well-defined edges or normal.
 
 use crate::mesh::Mesh;
+use crate::parallel::split_lengths;
 use rayon::prelude::*;
 use std::ops::Range;
 
@@ -415,18 +416,6 @@ fn concatenate(
             counts.copy_from_slice(&b.edge_n_faces);
         });
     (vv_offsets, vv_neighbors, edges, edge_n_faces)
-}
-
-/// Splits `data` into consecutive mutable slices of the given lengths.
-fn split_lengths<T>(lengths: impl Iterator<Item = usize>, data: &mut [T]) -> Vec<&mut [T]> {
-    let mut parts = Vec::new();
-    let mut rest = data;
-    for len in lengths {
-        let (head, tail) = std::mem::take(&mut rest).split_at_mut(len);
-        parts.push(head);
-        rest = tail;
-    }
-    parts
 }
 
 fn find_local(parent: &mut [u32], mut x: u32) -> u32 {
