@@ -17,13 +17,12 @@
 //! smoothed by 10 Laplace iterations, where it is flat (the faces, not the positions, are
 //! what the copy contributes).
 
-use crate::mesh::geometry::{face_normals, triangle_area_vector};
+use crate::mesh::geometry::triangle_area_vector;
 use crate::mesh::umbrella::umbrella_pass;
 use crate::mesh::{Mesh, Topology};
 use crate::metrics::normal_curvature::TurnLimits;
 use rayon::prelude::*;
 use serde::Serialize;
-use std::collections::VecDeque;
 
 /// Parameters of cap detection.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -295,9 +294,9 @@ fn caps_of(
 ) -> CapDetection {
     let n_faces = mesh.n_triangles();
     let tris = mesh.triangles();
-    let p = mesh.positions();
-    let flat_vertex = TurnLimits::new(mesh, topology).within(params.flat_deg, flat_deg_per_mm);
-    let normals = face_normals(mesh);
+    let turn_limits = TurnLimits::new(mesh, topology);
+    let flat_vertex = turn_limits.within(params.flat_deg, flat_deg_per_mm);
+    let normals = turn_limits.face_normals();
     let degenerate = |f: usize| normals[f] == [0.0; 3];
     let flat: Vec<bool> = (0..n_faces)
         .map(|f| !degenerate(f) && tris[f].iter().all(|&v| flat_vertex[v as usize]))
@@ -341,22 +340,17 @@ fn caps_of(
             }
         }
     }
-    let mut detection = CapDetection {
-        caps: Vec::new(),
-        n_regions: kept.len(),
-        n_terraces: 0,
-        n_from_smoothed_copy: 0,
-    };
-    let mut stamp = vec![NONE; mesh.n_vertices()];
     // Growth limits as cosines (no acos per visited face).
     let cos_step = params.grow_step_deg.to_radians().cos();
     let cos_total = params.grow_total_deg.to_radians().cos();
     for (id, faces) in kept.iter_mut().enumerate() {
         let id = id as u32;
         let mean = region_normal(mesh, faces);
-        // Grow over neighbours of nearly the same orientation.
-        let mut queue: VecDeque<u32> = faces.iter().copied().collect();
-        while let Some(f) = queue.pop_front() {
+        // Grow over neighbours of nearly the same orientation, breadth first: the faces not
+        // yet visited are the queue.
+        let mut next = 0;
+        while let Some(&f) = faces.get(next) {
+            next += 1;
             adjacency.of(mesh, topology, f, &mut scratch);
             for &g in &scratch {
                 let gi = g as usize;
@@ -368,40 +362,103 @@ fn caps_of(
                 {
                     region[gi] = id;
                     faces.push(g);
-                    queue.push_back(g);
                 }
             }
         }
-        // The region's vertices, each stamped with its id once: no sort of every corner and no
-        // search per lookup (a region can be the whole of a finely sampled surface).
-        let mut vertices: Vec<u32> = Vec::new();
-        for &f in faces.iter() {
-            for v in tris[f as usize] {
-                if stamp[v as usize] != id {
-                    stamp[v as usize] = id;
-                    vertices.push(v);
-                }
+    }
+    // A grown region's verdict depends only on its faces and the final assignment (a face
+    // goes to the first region that reaches it), so all regions are grown first; each is then
+    // examined with its large steps in parallel.
+    let mut detection = CapDetection {
+        caps: Vec::new(),
+        n_regions: kept.len(),
+        n_terraces: 0,
+        n_from_smoothed_copy: 0,
+    };
+    let mut stamp = vec![NONE; mesh.n_vertices()];
+    for (id, faces) in kept.iter().enumerate() {
+        let verdict = examine_region(
+            mesh,
+            topology,
+            normals,
+            &region,
+            id as u32,
+            faces,
+            &mut stamp,
+            staircase_reach,
+            params,
+        );
+        match verdict {
+            Verdict::Cap(cap) => detection.caps.push(cap),
+            Verdict::Terrace => detection.n_terraces += 1,
+            Verdict::Other => {}
+        }
+    }
+    detection
+}
+
+/// What examining one grown flat region found.
+enum Verdict {
+    Cap(Cap),
+    /// The surface leaves it both ways: a staircase terrace.
+    Terrace,
+    /// No border, no clear direction, no sharp turn or off the staircases.
+    Other,
+}
+
+/// The checks of [`caps_of`] on one grown region `id` (its `faces`, with `region` the final
+/// face-to-region assignment; `stamp`, one per vertex, is scratch shared by all regions and
+/// never holds `id` before).
+#[allow(clippy::too_many_arguments)]
+fn examine_region(
+    mesh: &Mesh,
+    topology: &Topology,
+    normals: &[[f32; 3]],
+    region: &[u32],
+    id: u32,
+    faces: &[u32],
+    stamp: &mut [u32],
+    staircase_reach: Option<&[bool]>,
+    params: &CapParams,
+) -> Verdict {
+    let (tris, p) = (mesh.triangles(), mesh.positions());
+    // The region's vertices, each stamped with its id once: no sort of every corner and no
+    // search per lookup (a region can be the whole of a finely sampled surface).
+    let mut vertices: Vec<u32> = Vec::new();
+    for &f in faces {
+        for v in tris[f as usize] {
+            if stamp[v as usize] != id {
+                stamp[v as usize] = id;
+                vertices.push(v);
             }
         }
-        let in_region = |v: u32| stamp[v as usize] == id;
-        // Border vertices: some incident face outside the region. A region without one (a
-        // closed surface flat everywhere at this sampling) is no cap: nothing more to compute.
-        let on_border = |v: u32| {
+    }
+    let stamp = &*stamp;
+    let in_region = |v: u32| stamp[v as usize] == id;
+    // Border vertices: some incident face outside the region. A region without one (a closed
+    // surface flat everywhere at this sampling) is no cap.
+    let mut border: Vec<u32> = vertices
+        .par_iter()
+        .with_min_len(4096)
+        .copied()
+        .filter(|&v| {
             topology
                 .vertex_faces(v as usize)
                 .iter()
                 .any(|&g| region[g as usize] != id)
-        };
-        if !vertices.iter().any(|&v| on_border(v)) {
-            continue;
-        }
-        vertices.par_sort_unstable();
-        let border: Vec<u32> = vertices.iter().copied().filter(|&v| on_border(v)).collect();
-        let normal = region_normal(mesh, faces);
-        // Sign of the largest offset of the outside neighbours along the region normal,
-        // counted where the slope is clear.
-        let (mut up, mut down) = (0usize, 0usize);
-        for &v in &border {
+        })
+        .collect();
+    if border.is_empty() {
+        return Verdict::Other;
+    }
+    border.par_sort_unstable();
+    let normal = region_normal(mesh, faces);
+    // Sign of the largest offset of the outside neighbours along the region normal, counted
+    // where the slope is clear.
+    let (up, down) = border
+        .par_iter()
+        .with_min_len(4096)
+        .map(|&v| {
             let pv = p[v as usize];
             let mut best = (0.0f32, 0.0f32);
             for &u in topology.neighbors(v as usize) {
@@ -417,53 +474,52 @@ fn caps_of(
             }
             let (d, len) = best;
             if d > params.min_slope * len {
-                up += 1;
+                (1, 0)
             } else if d < -params.min_slope * len {
-                down += 1;
+                (0, 1)
+            } else {
+                (0, 0)
             }
-        }
-        if up + down == 0 {
-            continue;
-        }
-        if up.min(down) as f32 > params.max_minority * (up + down) as f32 {
-            detection.n_terraces += 1;
-            continue;
-        }
-        // A cut leaves a rim where the wall turns away sharply (near 90 degrees for a tube cut
-        // across); a flat facet of a rounded surface is followed by more facets at shallow
-        // angles. Follow the surface outwards from the border up to a share of the region's
-        // width and see how far it turns.
-        let width = region_width(p, &vertices, normal);
-        let turned = turning_border(
-            mesh,
-            topology,
-            &normals,
-            &border,
-            in_region,
-            normal,
-            params.turn_reach * width,
-            params.turn_deg,
-        );
-        if (turned as f32) < params.min_turning_border * border.len() as f32 {
-            continue;
-        }
-        if let Some(reach) = staircase_reach {
-            let on = border.iter().filter(|&&v| reach[v as usize]).count();
-            if (on as f32) < params.min_staircase_border * border.len() as f32 {
-                continue;
-            }
-        }
-        let area_mm2 = region_area(mesh, faces);
-        let mut sorted_faces = faces.clone();
-        sorted_faces.sort_unstable();
-        detection.caps.push(Cap {
-            faces: sorted_faces,
-            vertices: vertices.clone(),
-            normal,
-            area_mm2,
-        });
+        })
+        .reduce(|| (0usize, 0usize), |a, b| (a.0 + b.0, a.1 + b.1));
+    if up + down == 0 {
+        return Verdict::Other;
     }
-    detection
+    if up.min(down) as f32 > params.max_minority * (up + down) as f32 {
+        return Verdict::Terrace;
+    }
+    // A cut leaves a rim where the wall turns away sharply (near 90 degrees for a tube cut
+    // across); a flat facet of a rounded surface is followed by more facets at shallow angles.
+    // Follow the surface outwards from the border up to a share of the region's width and see
+    // how far it turns.
+    let width = region_width(p, &vertices, normal);
+    let turned = turning_border(
+        mesh,
+        topology,
+        normals,
+        &border,
+        in_region,
+        normal,
+        params.turn_reach * width,
+        params.turn_deg,
+    );
+    if (turned as f32) < params.min_turning_border * border.len() as f32 {
+        return Verdict::Other;
+    }
+    if let Some(reach) = staircase_reach {
+        let on = border.iter().filter(|&&v| reach[v as usize]).count();
+        if (on as f32) < params.min_staircase_border * border.len() as f32 {
+            return Verdict::Other;
+        }
+    }
+    let mut sorted_faces = faces.to_vec();
+    sorted_faces.par_sort_unstable();
+    Verdict::Cap(Cap {
+        faces: sorted_faces,
+        vertices,
+        normal,
+        area_mm2: region_area(mesh, faces),
+    })
 }
 
 /// Number of border vertices from which the surface, followed outwards (outside the region)
@@ -566,7 +622,7 @@ fn region_width(p: &[[f32; 3]], vertices: &[u32], normal: [f32; 3]) -> f32 {
     (4.0 * min_var.sqrt()) as f32
 }
 
-/// Area-weighted unit normal of a set of faces.
+/// Area of a set of faces (mm²).
 fn region_area(mesh: &Mesh, faces: &[u32]) -> f64 {
     faces
         .iter()
@@ -577,13 +633,21 @@ fn region_area(mesh: &Mesh, faces: &[u32]) -> f64 {
         .sum()
 }
 
+/// Area-weighted unit normal of a set of faces. The area vectors of a large region are computed
+/// side by side, then summed in face order as for a small one: the same bits either way.
 fn region_normal(mesh: &Mesh, faces: &[u32]) -> [f32; 3] {
+    let area_vector = |f: u32| triangle_area_vector(mesh, mesh.triangles()[f as usize]);
     let mut sum = [0.0f64; 3];
-    for &f in faces {
-        let a = triangle_area_vector(mesh, mesh.triangles()[f as usize]);
+    let mut add = |a: [f32; 3]| {
         for k in 0..3 {
             sum[k] += a[k] as f64;
         }
+    };
+    if faces.len() < 1 << 16 {
+        faces.iter().for_each(|&f| add(area_vector(f)));
+    } else {
+        let vectors: Vec<[f32; 3]> = faces.par_iter().map(|&f| area_vector(f)).collect();
+        vectors.into_iter().for_each(add);
     }
     let len = (sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]).sqrt();
     if len > 0.0 {

@@ -2,7 +2,7 @@
 //! vertex, the largest angle in degrees between the vertex normal and its incident face normals.
 //! Flat regions give 0; terrace edges of a staircase give large values.
 
-use crate::mesh::geometry::{face_normals, vertex_normals};
+use crate::mesh::geometry::face_and_vertex_normals;
 use crate::mesh::{Mesh, Topology};
 use crate::parallel::deterministic_sum;
 use rayon::prelude::*;
@@ -29,8 +29,7 @@ pub struct NormalTurn {
 
 /// [`NormalTurn`] per vertex; `None` where the normal curvature is undefined.
 pub fn vertex_normal_turn(mesh: &Mesh, topology: &Topology) -> Vec<Option<NormalTurn>> {
-    let fnormals = face_normals(mesh);
-    let vnormals = vertex_normals(mesh, topology);
+    let (fnormals, vnormals) = face_and_vertex_normals(mesh, topology);
     let (p, triangles) = (mesh.positions(), mesh.triangles());
     (0..mesh.n_vertices())
         .into_par_iter()
@@ -74,12 +73,20 @@ pub struct TurnLimits<'a> {
 impl<'a> TurnLimits<'a> {
     /// Computes the face and vertex normals once, for any number of [`TurnLimits::within`].
     pub fn new(mesh: &'a Mesh, topology: &'a Topology) -> Self {
+        let (fnormals, vnormals) = face_and_vertex_normals(mesh, topology);
         Self {
             mesh,
             topology,
-            fnormals: face_normals(mesh),
-            vnormals: vertex_normals(mesh, topology),
+            fnormals,
+            vnormals,
         }
+    }
+
+    /// Unit face normals (zero for triangles without area), as [`face_normals`] gives them.
+    ///
+    /// [`face_normals`]: crate::mesh::geometry::face_normals
+    pub fn face_normals(&self) -> &[[f32; 3]] {
+        &self.fnormals
     }
 
     /// Per vertex: whether its normal curvature is at most `max_deg` and its turn per mm at
