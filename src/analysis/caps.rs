@@ -296,7 +296,7 @@ fn caps_of(
     let tris = mesh.triangles();
     let turn_limits = TurnLimits::new(mesh, topology);
     let flat_vertex = turn_limits.within(params.flat_deg, flat_deg_per_mm);
-    let normals = turn_limits.face_normals();
+    let normals = &turn_limits.into_face_normals();
     let degenerate = |f: usize| normals[f] == [0.0; 3];
     let flat: Vec<bool> = (0..n_faces)
         .map(|f| !degenerate(f) && tris[f].iter().all(|&v| flat_vertex[v as usize]))

@@ -82,11 +82,12 @@ impl<'a> TurnLimits<'a> {
         }
     }
 
-    /// Unit face normals (zero for triangles without area), as [`face_normals`] gives them.
+    /// The unit face normals (zero for triangles without area), as [`face_normals`] gives
+    /// them, for a caller that needs them after its last [`TurnLimits::within`].
     ///
     /// [`face_normals`]: crate::mesh::geometry::face_normals
-    pub fn face_normals(&self) -> &[[f32; 3]] {
-        &self.fnormals
+    pub fn into_face_normals(self) -> Vec<[f32; 3]> {
+        self.fnormals
     }
 
     /// Per vertex: whether its normal curvature is at most `max_deg` and its turn per mm at
