@@ -291,15 +291,7 @@ pub fn encode_annotated(
         sorted
     };
     match format {
-        OutputFormat::Ply => {
-            let mut props = arrays.to_vec();
-            if let Some(&(_, v)) = arrays.iter().find(|(n, _)| *n == main) {
-                if !arrays.iter().any(|(n, _)| *n == "quality") {
-                    props.push(("quality", v));
-                }
-            }
-            ply::encode_ply(mesh, meta, &props)
-        }
+        OutputFormat::Ply => ply::encode_ply(mesh, meta, &ply_properties(arrays, main)),
         OutputFormat::Stl => Ok(stl::encode_stl(mesh, meta)),
         OutputFormat::Vtp => {
             let point_data: Vec<vtp::VtpArray> = main_first()
@@ -326,8 +318,28 @@ pub fn write_annotated(
             "the output must end in .ply, .stl or .vtp",
         ),
     })?;
+    // PLY and STL are streamed: no copy of the whole file in memory.
+    match format {
+        OutputFormat::Ply => {
+            return ply::write_ply(path, mesh, meta, &ply_properties(arrays, main))
+        }
+        OutputFormat::Stl => return stl::write_stl(path, mesh, meta),
+        OutputFormat::Vtp => {}
+    }
     let bytes = encode_annotated(format, mesh, meta, arrays, main)?;
     write_bytes_atomically(path, &bytes)
+}
+
+/// The vertex properties a PLY output carries: `arrays`, and `main` once more as `quality`
+/// (the name MeshLab colours by) unless an array has that name.
+fn ply_properties<'a>(arrays: &[(&'a str, &'a [f32])], main: &str) -> Vec<(&'a str, &'a [f32])> {
+    let mut props = arrays.to_vec();
+    if let Some(&(_, v)) = arrays.iter().find(|(n, _)| *n == main) {
+        if !arrays.iter().any(|(n, _)| *n == "quality") {
+            props.push(("quality", v));
+        }
+    }
+    props
 }
 
 /// A mesh file that could not be written.

@@ -342,7 +342,8 @@ fn ascii_facets(mesh: &Mesh, faces: &[u32]) -> Vec<u8> {
 
 /// Encodes binary STL in memory (see [`write_stl`]).
 pub fn encode_stl(mesh: &Mesh, meta: &MeshMeta) -> Vec<u8> {
-    let mut out = Vec::new();
+    // The exact size up front: no copies while the buffer grows.
+    let mut out = Vec::with_capacity(HEADER + 4 + 50 * mesh.n_triangles());
     write_stl_to(&mut out, mesh, meta).expect("writing to a Vec cannot fail");
     out
 }
