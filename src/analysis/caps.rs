@@ -202,20 +202,37 @@ pub fn detect_caps(
     staircase_reach: Option<&[bool]>,
     params: &CapParams,
 ) -> CapDetection {
+    cap_candidates(mesh, topology, params).settle(mesh, staircase_reach, params)
+}
+
+/// Caps found before the staircase-border check, from both looks: what [`detect_caps`] finds
+/// without needing the staircase reach, so that the search can run while the staircases are
+/// still being measured.
+pub struct CapCandidates {
+    plain: Look,
+    smoothed: Option<Look>,
+}
+
+/// What one look found: the regions that passed every check but the staircase border.
+struct Look {
+    candidates: Vec<Candidate>,
+    n_regions: usize,
+    n_terraces: usize,
+}
+
+/// A cap with its border vertices (sorted), kept for the staircase-border check.
+struct Candidate {
+    cap: Cap,
+    border: Vec<u32>,
+}
+
+/// [`CapCandidates`] of a mesh: both looks, side by side.
+pub fn cap_candidates(mesh: &Mesh, topology: &Topology, params: &CapParams) -> CapCandidates {
     let adjacency = FaceNeighbours::build(mesh, topology);
     // The two looks are independent and mostly serial (flood fills, growth): they run side by
     // side, and their results are merged in the same order as ever.
-    let (mut detection, found) = rayon::join(
-        || {
-            caps_of(
-                mesh,
-                topology,
-                &adjacency,
-                staircase_reach,
-                params,
-                f32::INFINITY,
-            )
-        },
+    let (plain, smoothed) = rayon::join(
+        || caps_of(mesh, topology, &adjacency, params, f32::INFINITY),
         || {
             (params.smoothed_copy_iterations > 0).then(|| {
                 let copy = Mesh::from_checked_parts(
@@ -226,36 +243,68 @@ pub fn detect_caps(
                     &copy,
                     topology,
                     &adjacency,
-                    staircase_reach,
                     params,
                     params.smoothed_copy_flat_deg_per_mm,
                 )
             })
         },
     );
-    let Some(found) = found else {
-        return detection;
-    };
-    let mut taken = vec![false; mesh.n_triangles()];
-    for c in &detection.caps {
-        for &f in &c.faces {
-            taken[f as usize] = true;
+    CapCandidates { plain, smoothed }
+}
+
+impl CapCandidates {
+    /// The caps: candidates with enough of their border within `staircase_reach` (when given),
+    /// those of the smoothed copy added where they overlap none of the mesh's own.
+    pub fn settle(
+        self,
+        mesh: &Mesh,
+        staircase_reach: Option<&[bool]>,
+        params: &CapParams,
+    ) -> CapDetection {
+        let near_staircases = |c: &Candidate| {
+            staircase_reach.is_none_or(|reach| {
+                let on = c.border.iter().filter(|&&v| reach[v as usize]).count();
+                (on as f32) >= params.min_staircase_border * c.border.len() as f32
+            })
+        };
+        let mut detection = CapDetection {
+            caps: Vec::new(),
+            n_regions: self.plain.n_regions,
+            n_terraces: self.plain.n_terraces,
+            n_from_smoothed_copy: 0,
+        };
+        detection.caps = (self.plain.candidates.into_iter())
+            .filter(|c| near_staircases(c))
+            .map(|c| c.cap)
+            .collect();
+        let Some(found) = self.smoothed else {
+            return detection;
+        };
+        let mut taken = vec![false; mesh.n_triangles()];
+        for c in &detection.caps {
+            for &f in &c.faces {
+                taken[f as usize] = true;
+            }
         }
+        for candidate in found.candidates {
+            if !near_staircases(&candidate) {
+                continue;
+            }
+            let mut cap = candidate.cap;
+            if cap.faces.iter().any(|&f| taken[f as usize]) {
+                continue;
+            }
+            for &f in &cap.faces {
+                taken[f as usize] = true;
+            }
+            // Normal and area of the mesh itself (the terraced plane's mean normal).
+            cap.normal = region_normal(mesh, &cap.faces);
+            cap.area_mm2 = region_area(mesh, &cap.faces);
+            detection.caps.push(cap);
+            detection.n_from_smoothed_copy += 1;
+        }
+        detection
     }
-    for mut cap in found.caps {
-        if cap.faces.iter().any(|&f| taken[f as usize]) {
-            continue;
-        }
-        for &f in &cap.faces {
-            taken[f as usize] = true;
-        }
-        // Normal and area of the mesh itself (the terraced plane's mean normal).
-        cap.normal = region_normal(mesh, &cap.faces);
-        cap.area_mm2 = region_area(mesh, &cap.faces);
-        detection.caps.push(cap);
-        detection.n_from_smoothed_copy += 1;
-    }
-    detection
 }
 
 /// Positions after `iterations` uniform umbrella steps (lambda 0.5) with rim and non-manifold
@@ -288,10 +337,9 @@ fn caps_of(
     mesh: &Mesh,
     topology: &Topology,
     adjacency: &FaceNeighbours,
-    staircase_reach: Option<&[bool]>,
     params: &CapParams,
     flat_deg_per_mm: f32,
-) -> CapDetection {
+) -> Look {
     let n_faces = mesh.n_triangles();
     let tris = mesh.triangles();
     let turn_limits = TurnLimits::new(mesh, topology);
@@ -369,40 +417,32 @@ fn caps_of(
     // A grown region's verdict depends only on its faces and the final assignment (a face
     // goes to the first region that reaches it), so all regions are grown first; each is then
     // examined with its large steps in parallel.
-    let mut detection = CapDetection {
-        caps: Vec::new(),
+    let mut look = Look {
+        candidates: Vec::new(),
         n_regions: kept.len(),
         n_terraces: 0,
-        n_from_smoothed_copy: 0,
     };
     let mut stamp = vec![NONE; mesh.n_vertices()];
     for (id, faces) in kept.iter().enumerate() {
         let verdict = examine_region(
-            mesh,
-            topology,
-            normals,
-            &region,
-            id as u32,
-            faces,
-            &mut stamp,
-            staircase_reach,
-            params,
+            mesh, topology, normals, &region, id as u32, faces, &mut stamp, params,
         );
         match verdict {
-            Verdict::Cap(cap) => detection.caps.push(cap),
-            Verdict::Terrace => detection.n_terraces += 1,
+            Verdict::Cap(candidate) => look.candidates.push(candidate),
+            Verdict::Terrace => look.n_terraces += 1,
             Verdict::Other => {}
         }
     }
-    detection
+    look
 }
 
 /// What examining one grown flat region found.
 enum Verdict {
-    Cap(Cap),
+    /// A cap, unless the staircase-border check turns it down.
+    Cap(Candidate),
     /// The surface leaves it both ways: a staircase terrace.
     Terrace,
-    /// No border, no clear direction, no sharp turn or off the staircases.
+    /// No border, no clear direction or no sharp turn.
     Other,
 }
 
@@ -418,7 +458,6 @@ fn examine_region(
     id: u32,
     faces: &[u32],
     stamp: &mut [u32],
-    staircase_reach: Option<&[bool]>,
     params: &CapParams,
 ) -> Verdict {
     let (tris, p) = (mesh.triangles(), mesh.positions());
@@ -506,19 +545,16 @@ fn examine_region(
     if (turned as f32) < params.min_turning_border * border.len() as f32 {
         return Verdict::Other;
     }
-    if let Some(reach) = staircase_reach {
-        let on = border.iter().filter(|&&v| reach[v as usize]).count();
-        if (on as f32) < params.min_staircase_border * border.len() as f32 {
-            return Verdict::Other;
-        }
-    }
     let mut sorted_faces = faces.to_vec();
     sorted_faces.par_sort_unstable();
-    Verdict::Cap(Cap {
-        faces: sorted_faces,
-        vertices,
-        normal,
-        area_mm2: region_area(mesh, faces),
+    Verdict::Cap(Candidate {
+        cap: Cap {
+            faces: sorted_faces,
+            vertices,
+            normal,
+            area_mm2: region_area(mesh, faces),
+        },
+        border,
     })
 }
 

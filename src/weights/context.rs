@@ -7,7 +7,7 @@ use super::{
     StaircaseWeights, VertexWeights,
 };
 use crate::analysis::{
-    detect_caps, stack_axis, CapDetection, CapParams, StackAxis, StackAxisParams,
+    cap_candidates, stack_axis, CapDetection, CapParams, StackAxis, StackAxisParams,
 };
 use crate::mesh::{Mesh, Topology};
 use crate::spatial::TriangleBvh;
@@ -120,28 +120,37 @@ pub fn context_weights(
     references: &[&TriangleBvh],
 ) -> Context {
     let n = mesh.n_vertices();
-    let (estimated_axis, axis) = if !params.staircase {
-        (None, None)
-    } else {
-        match params.axis {
-            AxisChoice::Given(a) => {
-                let len = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
-                (
-                    None,
-                    (len > 0.0 && len.is_finite()).then(|| a.map(|x| x / len)),
-                )
-            }
-            AxisChoice::Auto => {
-                let est = stack_axis(mesh, topology, &StackAxisParams::default());
-                (Some(est), est.axis().map(|a| a.map(|x| x as f32)))
-            }
-        }
-    };
-    let staircase = axis.map(|a| staircase_weights(mesh, topology, a, &params.staircase_params));
+    // Cap candidates need nothing from the staircases but their reach, applied at the end:
+    // the search (flood fills and growth, partly serial) runs beside the staircase analysis.
+    let ((estimated_axis, axis, staircase), candidates) = rayon::join(
+        || {
+            let (estimated_axis, axis) = if !params.staircase {
+                (None, None)
+            } else {
+                match params.axis {
+                    AxisChoice::Given(a) => {
+                        let len = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+                        (
+                            None,
+                            (len > 0.0 && len.is_finite()).then(|| a.map(|x| x / len)),
+                        )
+                    }
+                    AxisChoice::Auto => {
+                        let est = stack_axis(mesh, topology, &StackAxisParams::default());
+                        (Some(est), est.axis().map(|a| a.map(|x| x as f32)))
+                    }
+                }
+            };
+            let staircase =
+                axis.map(|a| staircase_weights(mesh, topology, a, &params.staircase_params));
+            (estimated_axis, axis, staircase)
+        },
+        || cap_candidates(mesh, topology, &params.cap_params),
+    );
     let reach: Option<Vec<bool>> = staircase
         .as_ref()
         .map(|s| s.distance_mm.iter().map(|d| d.is_finite()).collect());
-    let caps = detect_caps(mesh, topology, reach.as_deref(), &params.cap_params);
+    let caps = candidates.settle(mesh, reach.as_deref(), &params.cap_params);
     let reference_distance_mm =
         (!references.is_empty()).then(|| super::distance::reference_distances(mesh, references));
     // Staircase weighting without a found axis: no staircases, so only the floor beta_min.

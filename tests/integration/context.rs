@@ -170,7 +170,7 @@ fn stack_axis_is_right_or_too_weak_raw_and_after_laplace() {
     );
 }
 
-use destair::analysis::{detect_caps, CapParams};
+use destair::analysis::{cap_candidates, detect_caps, CapParams};
 use destair::metrics::{average_normal_curvature, enclosed_volume, minimum_distance};
 use destair::smooth::{boundary_vertices, smooth, Method};
 use destair::spatial::TriangleBvh;
@@ -299,6 +299,35 @@ fn aneurysm_clipped_ends_are_the_caps() {
             "cap at z = {z}"
         );
     }
+}
+
+#[test]
+fn the_staircase_border_check_keeps_the_caps_within_reach() {
+    let case = named_case("aneurysm", &PhantomOptions::default()).unwrap();
+    let m = &case.meshes[0].1;
+    let t = Topology::build(m);
+    let params = CapParams {
+        min_staircase_border: 0.5,
+        ..CapParams::default()
+    };
+    let all = detect_caps(m, &t, None, &params);
+    assert_eq!(all.caps.len(), 3, "inlet and two outlets");
+    // Reach over the first cap only: it alone stays.
+    let mut reach = vec![false; m.n_vertices()];
+    for &v in &all.caps[0].vertices {
+        reach[v as usize] = true;
+    }
+    let kept = detect_caps(m, &t, Some(&reach), &params);
+    assert_eq!(kept.caps, all.caps[..1]);
+    assert_eq!(
+        (kept.n_regions, kept.n_terraces),
+        (all.n_regions, all.n_terraces)
+    );
+    let none = detect_caps(m, &t, Some(&vec![false; m.n_vertices()]), &params);
+    assert!(none.caps.is_empty());
+    // Candidates found before the reach is known settle to the same caps.
+    let settled = cap_candidates(m, &t, &params).settle(m, Some(&reach), &params);
+    assert_eq!(settled, kept);
 }
 
 /// Uniform and context-aware Laplace (20 iterations, lambda 0.5, axis z, beta_min 0) on a
