@@ -170,28 +170,41 @@ impl From<(Vec<[u32; 3]>, Vec<bool>)> for FaceNeighbours {
     }
 }
 
-/// Faces sharing an edge with face `f` (through the vertex->face CSR; no extra table).
+/// Faces sharing an edge with face `f` (through the vertex->face CSR; no extra table): for
+/// each edge in turn, in ascending order. The faces around the first corner give the first and
+/// the last edge's neighbours, those around the second the middle edge's.
 fn edge_neighbours(mesh: &Mesh, topology: &Topology, f: u32, out: &mut Vec<u32>) {
     out.clear();
-    let t = mesh.triangles()[f as usize];
-    for k in 0..3 {
-        let (a, b) = (t[k] as usize, t[(k + 1) % 3] as usize);
-        let (fa, fb) = (topology.vertex_faces(a), topology.vertex_faces(b));
-        let (mut i, mut j) = (0, 0);
-        while i < fa.len() && j < fb.len() {
-            match fa[i].cmp(&fb[j]) {
-                std::cmp::Ordering::Less => i += 1,
-                std::cmp::Ordering::Greater => j += 1,
-                std::cmp::Ordering::Equal => {
-                    if fa[i] != f {
-                        out.push(fa[i]);
-                    }
-                    i += 1;
-                    j += 1;
-                }
+    let tris = mesh.triangles();
+    let [a, b, c] = tris[f as usize];
+    // The last edge's neighbours wait here (rarely more than one).
+    let mut last: [u32; 4] = [NONE; 4];
+    let mut n_last = 0;
+    let mut last_more: Vec<u32> = Vec::new();
+    for &g in topology.vertex_faces(a as usize) {
+        if g == f {
+            continue;
+        }
+        let t = tris[g as usize];
+        if t.contains(&b) {
+            out.push(g);
+        }
+        if t.contains(&c) {
+            if n_last < last.len() {
+                last[n_last] = g;
+                n_last += 1;
+            } else {
+                last_more.push(g);
             }
         }
     }
+    for &g in topology.vertex_faces(b as usize) {
+        if g != f && tris[g as usize].contains(&c) {
+            out.push(g);
+        }
+    }
+    out.extend_from_slice(&last[..n_last]);
+    out.extend_from_slice(&last_more);
 }
 
 /// Detects caps. `staircase_reach` (one flag per vertex: within tau_max of a staircase vertex
@@ -690,5 +703,72 @@ fn region_normal(mesh: &Mesh, faces: &[u32]) -> [f32; 3] {
         sum.map(|x| (x / len) as f32)
     } else {
         [0.0; 3]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Faces sharing each edge of `f`, edge by edge, found by comparing every face.
+    fn brute_force_neighbours(mesh: &Mesh, f: u32) -> Vec<u32> {
+        let t = mesh.triangles()[f as usize];
+        let mut out = Vec::new();
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            for (g, u) in mesh.triangles().iter().enumerate() {
+                if g as u32 != f && u.contains(&a) && u.contains(&b) {
+                    out.push(g as u32);
+                }
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn edge_neighbours_match_brute_force_with_rims_and_fins() {
+        for seed in 0..20 {
+            let mut rng = fastrand::Rng::with_seed(seed);
+            // A 6 x 6 grid of vertices, some cells left out (rims), plus random triangles over
+            // its vertices (fins on non-manifold edges), in shuffled face order.
+            let n = 6u32;
+            let positions: Vec<[f32; 3]> = (0..n * n)
+                .map(|i| [(i % n) as f32, (i / n) as f32, rng.f32()])
+                .collect();
+            let mut triangles = Vec::new();
+            for y in 0..n - 1 {
+                for x in 0..n - 1 {
+                    if rng.u32(0..5) == 0 {
+                        continue;
+                    }
+                    let v = y * n + x;
+                    triangles.push([v, v + 1, v + n + 1]);
+                    triangles.push([v, v + n + 1, v + n]);
+                }
+            }
+            for _ in 0..8 {
+                let mut t = [0; 3];
+                while t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
+                    t = std::array::from_fn(|_| rng.u32(0..n * n));
+                }
+                triangles.push(t);
+            }
+            // A fan of six faces on the edge (0, 1), which is each one's last edge.
+            for k in 10..16 {
+                triangles.push([1, k, 0]);
+            }
+            rng.shuffle(&mut triangles);
+            let mesh = Mesh::new(positions, triangles).unwrap();
+            let topology = Topology::build(&mesh);
+            let mut out = Vec::new();
+            for f in 0..mesh.n_triangles() as u32 {
+                edge_neighbours(&mesh, &topology, f, &mut out);
+                assert_eq!(
+                    out,
+                    brute_force_neighbours(&mesh, f),
+                    "seed {seed}, face {f}"
+                );
+            }
+        }
     }
 }
