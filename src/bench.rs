@@ -391,6 +391,9 @@ pub struct ContextBench {
     pub stack_axis_s: f64,
     pub staircase_weights_s: f64,
     pub caps_s: f64,
+    /// All of the context analysis as `smooth` and `inspect --context` run it (axis estimated,
+    /// staircase weights, caps; the caps searched beside the staircases; s).
+    pub context_weights_s: f64,
     /// Building the index over the reference: its cells and its hierarchy (s).
     pub tree_build_s: f64,
     pub n_queries: usize,
@@ -428,6 +431,9 @@ pub fn context(triangles: usize, repeat: usize) -> ContextBench {
     let reach: Vec<bool> = stairs.distance_mm.iter().map(|d| d.is_finite()).collect();
     let (caps_s, _) = best_of(repeat, || {
         detect_caps(&mesh, &topology, Some(&reach), &CapParams::default())
+    });
+    let (context_weights_s, _) = best_of(repeat, || {
+        crate::weights::context_weights(&mesh, &topology, &Default::default(), &[])
     });
     let (tree_build_s, tree) = best_of(repeat, || {
         let tree = TriangleBvh::build(&mesh);
@@ -471,6 +477,7 @@ pub fn context(triangles: usize, repeat: usize) -> ContextBench {
         stack_axis_s,
         staircase_weights_s,
         caps_s,
+        context_weights_s,
         tree_build_s,
         n_queries: queries.len(),
         queries_s,

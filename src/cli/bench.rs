@@ -94,6 +94,10 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
             println!("  staircase weights  {:.4} s", r.staircase_weights_s);
             println!("  caps               {:.4} s", r.caps_s);
             println!(
+                "  all of the context {:.4} s  (as smooth and inspect --context run it)",
+                r.context_weights_s
+            );
+            println!(
                 "  triangle index     {:.4} s  (cells and hierarchy)",
                 r.tree_build_s
             );
