@@ -221,12 +221,14 @@ pub fn detect_caps(
 /// Caps found before the staircase-border check, from both looks: what [`detect_caps`] finds
 /// without needing the staircase reach, so that the search can run while the staircases are
 /// still being measured.
+#[derive(Debug, Clone)]
 pub struct CapCandidates {
     plain: Look,
     smoothed: Option<Look>,
 }
 
 /// What one look found: the regions that passed every check but the staircase border.
+#[derive(Debug, Clone)]
 struct Look {
     candidates: Vec<Candidate>,
     n_regions: usize,
@@ -234,6 +236,7 @@ struct Look {
 }
 
 /// A cap with its border vertices (sorted), kept for the staircase-border check.
+#[derive(Debug, Clone)]
 struct Candidate {
     cap: Cap,
     border: Vec<u32>,
@@ -267,7 +270,8 @@ pub fn cap_candidates(mesh: &Mesh, topology: &Topology, params: &CapParams) -> C
 
 impl CapCandidates {
     /// The caps: candidates with enough of their border within `staircase_reach` (when given),
-    /// those of the smoothed copy added where they overlap none of the mesh's own.
+    /// those of the smoothed copy added where they overlap none of the mesh's own. `mesh` is
+    /// the one the candidates were found on.
     pub fn settle(
         self,
         mesh: &Mesh,
@@ -281,15 +285,14 @@ impl CapCandidates {
             })
         };
         let mut detection = CapDetection {
-            caps: Vec::new(),
+            caps: (self.plain.candidates.into_iter())
+                .filter(|c| near_staircases(c))
+                .map(|c| c.cap)
+                .collect(),
             n_regions: self.plain.n_regions,
             n_terraces: self.plain.n_terraces,
             n_from_smoothed_copy: 0,
         };
-        detection.caps = (self.plain.candidates.into_iter())
-            .filter(|c| near_staircases(c))
-            .map(|c| c.cap)
-            .collect();
         let Some(found) = self.smoothed else {
             return detection;
         };

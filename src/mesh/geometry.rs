@@ -241,6 +241,28 @@ mod tests {
     }
 
     #[test]
+    fn face_and_vertex_normals_are_bit_for_bit_the_separate_ones() {
+        let mut rng = fastrand::Rng::with_seed(7);
+        // Random triangles over 60 random vertices, some without area (a repeated corner).
+        let positions: Vec<[f32; 3]> = (0..60)
+            .map(|_| [rng.f32() * 9.0, rng.f32() * 9.0, rng.f32() * 9.0])
+            .collect();
+        let triangles: Vec<[u32; 3]> = (0..200)
+            .map(|i| {
+                let a = rng.u32(0..60);
+                let b = if i % 17 == 0 { a } else { rng.u32(0..60) };
+                [a, b, rng.u32(0..60)]
+            })
+            .collect();
+        let m = Mesh::new(positions, triangles).unwrap();
+        let topo = Topology::build(&m);
+        let (faces, vertices) = face_and_vertex_normals(&m, &topo);
+        let bits = |v: &[[f32; 3]]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&faces), bits(&face_normals(&m)));
+        assert_eq!(bits(&vertices), bits(&vertex_normals(&m, &topo)));
+    }
+
+    #[test]
     fn volume_is_translation_invariant_for_closed_meshes() {
         let m = cube();
         let (mut p, t) = m.into_parts();
