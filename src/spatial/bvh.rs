@@ -274,8 +274,10 @@ impl TriangleBvh {
         }
         let mut best = Best::within(within);
         // The query's own cell, then its neighbours: enough on the surface.
+        let mut listed = false;
         for ring in 0..=1 {
             let walls = self.cells.visit_ring(p, ring, |ids, gap2| {
+                listed |= !ids.is_empty();
                 if gap2 <= best.distance * best.distance * (1.0 + 1e-9) {
                     for &f in ids {
                         best.offer(p, f, &self.triangles[f as usize], &keep);
@@ -285,10 +287,11 @@ impl TriangleBvh {
             if best.distance < walls {
                 return best.found();
             }
-            // Nothing in its own cell (a query off the surface, or a filter that rejects the
-            // triangles around it, as an opposite wall's does): the neighbours are unlikely
-            // to settle it either.
-            if best.triangle == u32::MAX {
+            // Nothing found in its own cell. If a filter rejected the triangles there (as an
+            // opposite wall's does), the neighbours are unlikely to settle it either; if the
+            // cell is empty, they can only when they list triangles (a point just off the
+            // surface, as a vertex of a smoothed copy is), not for a point far away.
+            if best.triangle == u32::MAX && (listed || !self.cells.near_listed(p)) {
                 break;
             }
         }
@@ -552,11 +555,12 @@ mod tests {
             for _ in 0..200 {
                 // Near and far (up to 60 mm outside the box), and on the surface (next to a
                 // corner, where the cells settle the query).
-                let p: [f32; 3] = if rng.bool() {
-                    std::array::from_fn(|_| rng.f32() * 160.0 - 60.0)
-                } else {
-                    let corner = triangles[rng.usize(0..n)][rng.usize(0..3)];
-                    corner.map(|x| x + 0.02 * (rng.f32() - 0.5))
+                // And a few mm off the surface, often in an empty cell beside listed ones.
+                let corner = triangles[rng.usize(0..n)][rng.usize(0..3)];
+                let p: [f32; 3] = match rng.u32(0..3) {
+                    0 => std::array::from_fn(|_| rng.f32() * 160.0 - 60.0),
+                    1 => corner.map(|x| x + 0.02 * (rng.f32() - 0.5)),
+                    _ => corner.map(|x| x + 8.0 * (rng.f32() - 0.5)),
                 };
                 let within = if rng.bool() {
                     f64::INFINITY

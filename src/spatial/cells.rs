@@ -19,6 +19,9 @@ pub(crate) struct TriangleCells {
     dims: [usize; 3],
     offsets: Vec<u32>,
     ids: Vec<u32>,
+    /// Per cell: whether it or one of its 26 neighbours lists a triangle, so that a query
+    /// whose own cell is empty knows at once whether its neighbours are worth a look.
+    near_listed: Vec<bool>,
     /// Far above the rounding of a wall's distance at this grid's coordinates (mm).
     slack: f64,
 }
@@ -98,14 +101,43 @@ impl TriangleCells {
         let scale = (0..3)
             .map(|a| lo[a].abs().max(hi[a].abs()))
             .fold(cell, f64::max);
+        let near_listed = dilate(
+            (0..n_cells).map(|c| offsets[c] < offsets[c + 1]).collect(),
+            dims,
+        );
         TriangleCells {
             origin: lo,
             cell,
             dims,
             offsets,
             ids,
+            near_listed,
             slack: 1e-9 * scale,
         }
+    }
+
+    /// Whether the cell of `p` (the nearest cell for a point outside) or one of its 26
+    /// neighbours lists a triangle.
+    /// False for a point more than a cell outside the grid, whose nearest cell's neighbours
+    /// are no nearer to it than the rest.
+    pub(crate) fn near_listed(&self, p: [f32; 3]) -> bool {
+        if self.offsets.is_empty() {
+            return false;
+        }
+        let mut at = [0usize; 3];
+        for a in 0..3 {
+            let x = (p[a] as f64 - self.origin[a]) / self.cell;
+            if !(x >= -1.0 && x <= (self.dims[a] + 1) as f64) {
+                return false;
+            }
+            at[a] = (x.floor().max(0.0) as usize).min(self.dims[a] - 1);
+        }
+        self.near_listed[(at[2] * self.dims[1] + at[1]) * self.dims[0] + at[0]]
+    }
+
+    /// The cell index of coordinate `x` along axis `a`, clamped to the grid.
+    fn cell_of(&self, x: f64, a: usize) -> usize {
+        (((x - self.origin[a]) / self.cell).floor().max(0.0) as usize).min(self.dims[a] - 1)
     }
 
     /// Visits the cells of ring `ring` around the cell of `p` (the nearest cell for a point
@@ -125,9 +157,7 @@ impl TriangleCells {
         }
         let q = p.map(f64::from);
         let dims = self.dims;
-        let at: [usize; 3] = std::array::from_fn(|a| {
-            (((q[a] - self.origin[a]) / self.cell).floor().max(0.0) as usize).min(dims[a] - 1)
-        });
+        let at: [usize; 3] = std::array::from_fn(|a| self.cell_of(q[a], a));
         let lo: [usize; 3] = std::array::from_fn(|a| at[a].saturating_sub(ring));
         let hi: [usize; 3] = std::array::from_fn(|a| (at[a] + ring).min(dims[a] - 1));
         let on_ring = |x: usize, a: usize| x + ring == at[a] || x == at[a] + ring;
@@ -167,5 +197,71 @@ impl TriangleCells {
             }
         }
         walls - self.slack
+    }
+}
+
+/// `listed` (one flag per cell of a grid of `dims`) widened by one cell along every axis in
+/// turn: a cell's result is set when any cell of its 3 x 3 x 3 block is.
+fn dilate(listed: Vec<bool>, dims: [usize; 3]) -> Vec<bool> {
+    let [nx, ny, nz] = dims;
+    let plane = nx * ny;
+    let (mut from, mut to) = (listed, vec![false; plane * nz]);
+    for a in 0..3 {
+        let from_ref = &from;
+        to.par_chunks_mut(plane).enumerate().for_each(|(k, out)| {
+            for j in 0..ny {
+                for i in 0..nx {
+                    let c = (k * ny + j) * nx + i;
+                    let (x, len, stride) = [(i, nx, 1), (j, ny, nx), (k, nz, plane)][a];
+                    out[j * nx + i] = from_ref[c]
+                        || (x > 0 && from_ref[c - stride])
+                        || (x + 1 < len && from_ref[c + stride]);
+                }
+            }
+        });
+        std::mem::swap(&mut from, &mut to);
+    }
+    from
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn near_listed_is_any_listed_cell_of_the_block() {
+        let mut rng = fastrand::Rng::with_seed(5);
+        for n in [1, 7, 60, 500] {
+            let triangles: Vec<[[f32; 3]; 3]> = (0..n)
+                .map(|_| {
+                    let c: [f32; 3] = std::array::from_fn(|_| rng.f32() * 30.0);
+                    std::array::from_fn(|_| std::array::from_fn(|a| c[a] + rng.f32()))
+                })
+                .collect();
+            let cells = TriangleCells::build(&triangles);
+            let [nx, ny, nz] = cells.dims;
+            let listed = |i: usize, j: usize, k: usize| {
+                let c = (k * ny + j) * nx + i;
+                cells.offsets[c] < cells.offsets[c + 1]
+            };
+            for k in 0..nz {
+                for j in 0..ny {
+                    for i in 0..nx {
+                        let range =
+                            |x: usize, len: usize| x.saturating_sub(1)..=(x + 1).min(len - 1);
+                        let any = range(k, nz).any(|kk| {
+                            range(j, ny).any(|jj| range(i, nx).any(|ii| listed(ii, jj, kk)))
+                        });
+                        // The middle of the cell.
+                        let p: [f32; 3] = std::array::from_fn(|a| {
+                            (cells.origin[a] + ([i, j, k][a] as f64 + 0.5) * cells.cell) as f32
+                        });
+                        assert_eq!(cells.near_listed(p), any, "n {n}, cell {i} {j} {k}");
+                    }
+                }
+            }
+            // Far outside the grid: never.
+            assert!(!cells.near_listed([-1e4, 0.0, 0.0]));
+        }
     }
 }
