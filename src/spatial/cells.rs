@@ -116,23 +116,20 @@ impl TriangleCells {
         }
     }
 
-    /// Whether the cell of `p` (the nearest cell for a point outside) or one of its 26
-    /// neighbours lists a triangle.
-    /// False for a point more than a cell outside the grid, whose nearest cell's neighbours
-    /// are no nearer to it than the rest.
+    /// Whether the cell of `p` or one of its 26 neighbours lists a triangle; false for a point
+    /// more than a cell outside the grid, whose nearest cell's neighbours are no nearer to it
+    /// than the rest.
     pub(crate) fn near_listed(&self, p: [f32; 3]) -> bool {
         if self.offsets.is_empty() {
             return false;
         }
-        let mut at = [0usize; 3];
-        for a in 0..3 {
-            let x = (p[a] as f64 - self.origin[a]) / self.cell;
-            if !(x >= -1.0 && x <= (self.dims[a] + 1) as f64) {
-                return false;
-            }
-            at[a] = (x.floor().max(0.0) as usize).min(self.dims[a] - 1);
-        }
-        self.near_listed[(at[2] * self.dims[1] + at[1]) * self.dims[0] + at[0]]
+        let q = p.map(f64::from);
+        let inside = (0..3).all(|a| {
+            let x = (q[a] - self.origin[a]) / self.cell;
+            x >= -1.0 && x <= (self.dims[a] + 1) as f64
+        });
+        let at: [usize; 3] = std::array::from_fn(|a| self.cell_of(q[a], a));
+        inside && self.near_listed[(at[2] * self.dims[1] + at[1]) * self.dims[0] + at[0]]
     }
 
     /// The cell index of coordinate `x` along axis `a`, clamped to the grid.
