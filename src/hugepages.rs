@@ -12,6 +12,14 @@ pub fn zeroed_vec<T: Copy + Default>(n: usize) -> Vec<T> {
     v
 }
 
+/// An empty vector with room for `n` values whose pages are advised to be huge (a buffer that
+/// is written whole right away: its first touch then faults in 2 MiB at a time).
+pub fn with_capacity<T>(n: usize) -> Vec<T> {
+    let mut v = Vec::with_capacity(n);
+    advise(v.spare_capacity_mut());
+    v
+}
+
 /// Asks for huge pages over the 2 MiB-aligned interior of `v`'s buffer (before it is touched).
 /// A hint only: nothing changes where the kernel does not support it.
 pub fn advise<T>(v: &[T]) {

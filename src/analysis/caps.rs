@@ -18,7 +18,7 @@
 //! what the copy contributes).
 
 use crate::mesh::geometry::triangle_area_vector;
-use crate::mesh::umbrella::umbrella_pass;
+use crate::mesh::umbrella::{padded, umbrella_pass, unpadded, NeighbourLists};
 use crate::mesh::{Mesh, Topology};
 use crate::metrics::normal_curvature::TurnLimits;
 use rayon::prelude::*;
@@ -338,13 +338,14 @@ fn low_pass(mesh: &Mesh, topology: &Topology, iterations: usize) -> Vec<[f32; 3]
             scale[e[1] as usize] = 0.0;
         }
     }
-    let mut a = mesh.positions().to_vec();
+    let rows = NeighbourLists::new(offsets, neighbors, None);
+    let mut a = padded(mesh.positions());
     let mut b = a.clone();
     for _ in 0..iterations {
-        umbrella_pass(&a, &mut b, offsets, neighbors, &scale, 0.5, None);
+        umbrella_pass(&a, &mut b, &rows, &scale, 0.5, None);
         std::mem::swap(&mut a, &mut b);
     }
-    a
+    unpadded(&a)
 }
 
 /// Caps of the mesh as it is (Algorithm 3.1 with the checks above); flat faces turn by at most

@@ -103,21 +103,27 @@ pub fn locality_ordered(mesh: &Mesh) -> (Mesh, Vec<u32>) {
 /// cache (384 KB of positions, about one core's L2 cache).
 const NEAR: u32 = 32 * 1024;
 
+/// Vertices the scatter test looks at: every SAMPLE-th one (a numbering is scattered or not
+/// throughout; the test then costs a sixteenth of a pass over the adjacency).
+const SAMPLE: usize = 16;
+
 /// Whether more than a tenth of the references of a vertex adjacency (CSR) point further than
-/// 32,768 vertices away: a scattered numbering (shuffled, hash-ordered) in which iterated
-/// kernels wait on memory. Scanline orders of marching-cubes and flying-edges output are not.
+/// 32,768 vertices away, counted over every 16th vertex: a scattered numbering (shuffled,
+/// hash-ordered) in which iterated kernels wait on memory. Scanline orders of marching-cubes and
+/// flying-edges output are not.
 pub fn is_scattered(offsets: &[u32], neighbors: &[u32]) -> bool {
-    let far: usize = (0..offsets.len().saturating_sub(1))
+    let n = offsets.len().saturating_sub(1);
+    let (far, all) = (0..n.div_ceil(SAMPLE))
         .into_par_iter()
-        .with_min_len(4096)
-        .map(|v| {
+        .with_min_len(1024)
+        .map(|k| {
+            let v = k * SAMPLE;
             let list = &neighbors[offsets[v] as usize..offsets[v + 1] as usize];
-            list.iter()
-                .filter(|&&n| n.abs_diff(v as u32) > NEAR)
-                .count()
+            let far = list.iter().filter(|&&w| w.abs_diff(v as u32) > NEAR);
+            (far.count(), list.len())
         })
-        .sum();
-    far * 10 > neighbors.len()
+        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+    far * 10 > all
 }
 
 /// A renumbering of vertices: vertex `old[i]` gets number i, and vertex v gets `new[v]`.
@@ -197,45 +203,6 @@ impl Renumbering {
     /// Per-vertex values of the new numbering back in the old one.
     pub fn scatter<T: Copy + Send + Sync>(&self, values: &[T]) -> Vec<T> {
         self.new.par_iter().map(|&i| values[i as usize]).collect()
-    }
-
-    /// The adjacency (CSR offsets and neighbours) in the new numbering; every vertex keeps its
-    /// neighbours in the same order, so sums over them round exactly as before.
-    pub fn adjacency(&self, offsets: &[u32], neighbors: &[u32]) -> (Vec<u32>, Vec<u32>) {
-        let mut new_offsets = Vec::with_capacity(offsets.len());
-        new_offsets.push(0u32);
-        let mut end = 0u32;
-        for &v in &self.old {
-            end += offsets[v as usize + 1] - offsets[v as usize];
-            new_offsets.push(end);
-        }
-        // Names first, in the old layout (a streaming pass), then each list moved whole.
-        let renamed: Vec<u32> = neighbors
-            .par_iter()
-            .with_min_len(1 << 14)
-            .map(|&w| self.new[w as usize])
-            .collect();
-        let mut new_neighbors = vec![0u32; neighbors.len()];
-        // The lists of each block of new vertices are one stretch: blocks are filled in parallel.
-        const BLOCK: usize = 16 * 1024;
-        let mut blocks: Vec<(&[u32], &mut [u32])> = Vec::new();
-        let mut rest = new_neighbors.as_mut_slice();
-        for (b, vertices) in self.old.chunks(BLOCK).enumerate() {
-            let (first, stop) = (b * BLOCK, b * BLOCK + vertices.len());
-            let len = (new_offsets[stop] - new_offsets[first]) as usize;
-            let (head, tail) = rest.split_at_mut(len);
-            blocks.push((vertices, head));
-            rest = tail;
-        }
-        blocks.into_par_iter().for_each(|(vertices, out)| {
-            let mut k = 0;
-            for &v in vertices {
-                let list = &renamed[offsets[v as usize] as usize..offsets[v as usize + 1] as usize];
-                out[k..k + list.len()].copy_from_slice(list);
-                k += list.len();
-            }
-        });
-        (new_offsets, new_neighbors)
     }
 }
 
@@ -326,14 +293,14 @@ mod tests {
             assert_eq!(r.new[v as usize], i as u32);
         }
         assert_eq!(r.old.len(), mesh.n_vertices());
-        let (o2, n2) = r.adjacency(offsets, neighbors);
-        assert!(!is_scattered(&o2, &n2));
-        for (i, &v) in r.old.iter().enumerate() {
-            let before = &neighbors[offsets[v as usize] as usize..offsets[v as usize + 1] as usize];
-            let after = &n2[o2[i] as usize..o2[i + 1] as usize];
-            let renamed: Vec<u32> = before.iter().map(|&w| r.new[w as usize]).collect();
-            assert_eq!(after, renamed.as_slice());
+        // The adjacency in the new numbering is no longer scattered.
+        let (mut o2, mut n2) = (vec![0u32], Vec::new());
+        for &v in &r.old {
+            let list = &neighbors[offsets[v as usize] as usize..offsets[v as usize + 1] as usize];
+            n2.extend(list.iter().map(|&w| r.new[w as usize]));
+            o2.push(n2.len() as u32);
         }
+        assert!(!is_scattered(&o2, &n2));
         // Gathering then scattering gives the values back.
         let values: Vec<u32> = (0..mesh.n_vertices() as u32).map(|v| v * 7).collect();
         assert_eq!(r.scatter(&r.gather(&values)), values);

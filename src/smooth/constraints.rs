@@ -5,7 +5,7 @@
 //! when the largest step falls below a threshold (the paper uses 0.002).
 
 use super::{max_step, CHUNK};
-use crate::mesh::umbrella::neighbour_mean;
+use crate::mesh::umbrella::{copied, padded, unpadded, NeighbourLists, Padded};
 use crate::mesh::Mesh;
 use rayon::prelude::*;
 
@@ -69,7 +69,7 @@ pub fn cell_edge_axes(mesh: &Mesh, voxel: [f32; 3]) -> Vec<Option<u8>> {
 #[allow(clippy::too_many_arguments)]
 pub(super) fn relax(
     original: &[[f32; 3]],
-    (offsets, neighbors): (&[u32], &[u32]),
+    rows: &NeighbourLists<'_>,
     scale: &[f32],
     lambda: f32,
     region: Region,
@@ -77,45 +77,49 @@ pub(super) fn relax(
     threshold: f32,
     max_iterations: usize,
 ) -> (Vec<[f32; 3]>, usize, f32, bool) {
-    let mut a = original.to_vec();
-    let mut b = original.to_vec();
+    let n = rows.len();
+    let mut a = padded(original);
+    let mut b = copied(&a);
     let mut last = 0.0f32;
     for iteration in 0..max_iterations {
-        b.par_chunks_mut(CHUNK).enumerate().for_each(|(c, out)| {
-            let first = c * CHUNK;
-            for (i, o) in out.iter_mut().enumerate() {
-                let v = first + i;
-                let p = a[v];
-                let s = scale[v];
-                if s == 0.0 {
-                    *o = p;
-                    continue;
-                }
-                let m =
-                    neighbour_mean(&a, &neighbors[offsets[v] as usize..offsets[v + 1] as usize]);
-                let target: [f32; 3] = std::array::from_fn(|k| p[k] + lambda * (m[k] - p[k]));
-                let orig = original[v];
-                let mut d: [f32; 3] = std::array::from_fn(|k| target[k] - orig[k]);
-                if let Some(axes) = edge_axes {
-                    // Only the component along the vertex's grid edge may change.
-                    let axis = axes[v].map_or(3, usize::from);
-                    for (k, dk) in d.iter_mut().enumerate() {
-                        if k != axis {
-                            *dk = 0.0;
+        b[..n]
+            .par_chunks_mut(CHUNK)
+            .enumerate()
+            .for_each(|(c, out)| {
+                let first = c * CHUNK;
+                for (i, o) in out.iter_mut().enumerate() {
+                    let v = first + i;
+                    let p = a[v];
+                    let s = scale[v];
+                    if s == 0.0 {
+                        *o = p;
+                        continue;
+                    }
+                    let m = rows.mean(&a, v);
+                    let target = p + (m - p) * lambda;
+                    let orig = original[v];
+                    let mut d: [f32; 3] = std::array::from_fn(|k| target[k] - orig[k]);
+                    if let Some(axes) = edge_axes {
+                        // Only the component along the vertex's grid edge may change.
+                        let axis = axes[v].map_or(3, usize::from);
+                        for (k, dk) in d.iter_mut().enumerate() {
+                            if k != axis {
+                                *dk = 0.0;
+                            }
                         }
                     }
+                    let d = clip(region, d);
+                    let r: [f32; 3] = std::array::from_fn(|k| p[k] + s * (orig[k] + d[k] - p[k]));
+                    *o = Padded::new(r[0], r[1], r[2], 0.0);
                 }
-                let d = clip(region, d);
-                *o = std::array::from_fn(|k| p[k] + s * (orig[k] + d[k] - p[k]));
-            }
-        });
+            });
         std::mem::swap(&mut a, &mut b);
         last = max_step(&a, &b);
         if last < threshold {
-            return (a, iteration + 1, last, true);
+            return (unpadded(&a), iteration + 1, last, true);
         }
     }
-    (a, max_iterations, last, max_iterations == 0)
+    (unpadded(&a), max_iterations, last, max_iterations == 0)
 }
 
 #[cfg(test)]

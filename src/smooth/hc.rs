@@ -11,26 +11,28 @@
 //! Weight 0 still keeps a vertex exactly in place.
 
 use super::{max_step, CHUNK};
-use crate::mesh::umbrella::neighbour_mean;
+use crate::mesh::umbrella::{copied, padded, unpadded, NeighbourLists, Padded};
 use rayon::prelude::*;
 
 pub(super) fn hc(
     original: &[[f32; 3]],
-    (offsets, neighbors): (&[u32], &[u32]),
+    rows: &NeighbourLists<'_>,
     scale: &[f32],
     lambda: f32,
     alpha: f32,
     beta: f32,
     iterations: usize,
 ) -> (Vec<[f32; 3]>, f32) {
-    let n = original.len();
-    let mut q = original.to_vec();
-    let mut p = original.to_vec();
-    let mut diff = vec![[0.0f32; 3]; n];
+    let n = rows.len();
+    let mut q = padded(original);
+    let mut p = copied(&q);
+    // The differences, with the zero sentinel the rows point short lists at.
+    let mut diff = vec![Padded::ZERO; n + 1];
     for _ in 0..iterations {
         // Laplace step p, scaled by the weight, and difference b, from q.
-        p.par_chunks_mut(CHUNK)
-            .zip(diff.par_chunks_mut(CHUNK))
+        p[..n]
+            .par_chunks_mut(CHUNK)
+            .zip(diff[..n].par_chunks_mut(CHUNK))
             .enumerate()
             .for_each(|(c, (pc, bc))| {
                 let first = c * CHUNK;
@@ -40,38 +42,31 @@ pub(super) fn hc(
                     let mut r = qv;
                     let s = scale[v];
                     if s != 0.0 {
-                        let m = neighbour_mean(
-                            &q,
-                            &neighbors[offsets[v] as usize..offsets[v + 1] as usize],
-                        );
-                        for k in 0..3 {
-                            r[k] = qv[k] + s * lambda * (m[k] - qv[k]);
-                        }
+                        r = qv + (rows.mean(&q, v) - qv) * (s * lambda);
                     }
                     *po = r;
-                    let o = original[v];
-                    *bo = std::array::from_fn(|k| r[k] - (alpha * o[k] + (1.0 - alpha) * qv[k]));
+                    let [x, y, z] = original[v];
+                    *bo = r - (Padded::new(x, y, z, 0.0) * alpha + qv * (1.0 - alpha));
                 }
             });
         // Back-correction of what the weighted Laplace step did; weight 0 stays in place.
-        p.par_chunks_mut(CHUNK).enumerate().for_each(|(c, pc)| {
-            let first = c * CHUNK;
-            for (i, po) in pc.iter_mut().enumerate() {
-                let v = first + i;
-                let s = scale[v];
-                let qv = q[v];
-                if s == 0.0 {
-                    *po = qv;
-                    continue;
+        p[..n]
+            .par_chunks_mut(CHUNK)
+            .enumerate()
+            .for_each(|(c, pc)| {
+                let first = c * CHUNK;
+                for (i, po) in pc.iter_mut().enumerate() {
+                    let v = first + i;
+                    let s = scale[v];
+                    let qv = q[v];
+                    if s == 0.0 {
+                        *po = qv;
+                        continue;
+                    }
+                    let mean_diff = rows.mean(&diff, v);
+                    *po -= diff[v] * beta + mean_diff * (1.0 - beta);
                 }
-                let mean_diff = neighbour_mean(
-                    &diff,
-                    &neighbors[offsets[v] as usize..offsets[v + 1] as usize],
-                );
-                let bv = diff[v];
-                *po = std::array::from_fn(|k| po[k] - (beta * bv[k] + (1.0 - beta) * mean_diff[k]));
-            }
-        });
+            });
         std::mem::swap(&mut p, &mut q);
     }
     let last = if iterations > 0 {
@@ -79,5 +74,5 @@ pub(super) fn hc(
     } else {
         0.0
     };
-    (q, last)
+    (unpadded(&q), last)
 }

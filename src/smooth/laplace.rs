@@ -3,31 +3,23 @@
 //! (Moench 2010).
 
 use super::max_step;
-use crate::mesh::umbrella::umbrella_pass;
+use crate::mesh::umbrella::{copied, padded, umbrella_pass, unpadded, NeighbourLists};
 
 /// Runs `iterations` iterations; each iteration applies one pass per factor (one for Laplace,
 /// lambda then mu for Taubin). Returns positions and the last pass's largest step.
 pub(super) fn laplace(
     original: &[[f32; 3]],
-    (offsets, neighbors): (&[u32], &[u32]),
+    rows: &NeighbourLists<'_>,
     scale: &[f32],
     factors: &[f32],
     iterations: usize,
     npc_voxel: Option<[f32; 3]>,
 ) -> (Vec<[f32; 3]>, f32) {
-    let mut a = original.to_vec();
-    let mut b = original.to_vec();
+    let mut a = padded(original);
+    let mut b = copied(&a);
     for _ in 0..iterations {
         for &f in factors {
-            umbrella_pass(
-                &a,
-                &mut b,
-                offsets,
-                neighbors,
-                scale,
-                f,
-                npc_voxel.map(|v| (original, v)),
-            );
+            umbrella_pass(&a, &mut b, rows, scale, f, npc_voxel.map(|v| (original, v)));
             std::mem::swap(&mut a, &mut b);
         }
     }
@@ -36,5 +28,5 @@ pub(super) fn laplace(
     } else {
         0.0
     };
-    (a, last)
+    (unpadded(&a), last)
 }

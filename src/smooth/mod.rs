@@ -15,8 +15,11 @@ mod mcf;
 
 pub use constraints::cell_edge_axes;
 
+use crate::mesh::order::Renumbering;
+use crate::mesh::umbrella::NeighbourLists;
 use crate::mesh::{Mesh, Topology};
 use crate::weights::VertexWeights;
+use rayon::prelude::*;
 use serde::Serialize;
 
 /// Vertices per parallel task in the smoothing kernels (the umbrella operator's).
@@ -303,14 +306,13 @@ pub fn smooth(
     .then(|| crate::mesh::order::scanline(mesh.positions(), offsets, neighbors));
     let (positions, iterations, last_max_step, converged) = match &renumbering {
         Some(r) => {
-            let adjacency = r.adjacency(offsets, neighbors);
             let axes = axes.as_deref().map(|a| r.gather(a));
             let (p, i, l, c) = run_method(
                 mesh,
                 topology,
                 method,
                 &r.gather(mesh.positions()),
-                (&adjacency.0, &adjacency.1),
+                (offsets, neighbors, Some(r)),
                 &r.gather(&scale),
                 axes.as_deref(),
                 iterations,
@@ -322,7 +324,7 @@ pub fn smooth(
             topology,
             method,
             mesh.positions(),
-            (offsets, neighbors),
+            (offsets, neighbors, None),
             &scale,
             axes.as_deref(),
             iterations,
@@ -349,6 +351,8 @@ fn step_scales(
     let n = mesh.n_vertices();
     let (offsets, _) = topology.neighbor_csr();
     let mut scale: Vec<f32> = (0..n)
+        .into_par_iter()
+        .with_min_len(CHUNK)
         .map(|v| {
             let isolated = offsets[v] == offsets[v + 1];
             if fixed.get(v).copied().unwrap_or(false) || isolated {
@@ -374,31 +378,36 @@ fn step_scales(
     (scale, axes)
 }
 
-/// Runs `method` on positions `original` with adjacency `csr` and step scales `scale`, all in one
-/// numbering (the mesh's own, or a renumbering for every method but curvature flow). Returns
-/// positions, iterations run, the last largest step and whether a relaxation converged.
+/// Runs `method` on positions `original` and step scales `scale`, both in one numbering: the
+/// mesh's own, or for every method but curvature flow (which reads the mesh's faces) the
+/// renumbering given with the mesh's adjacency (CSR offsets and neighbours). Returns positions,
+/// iterations run, the last largest step and whether a relaxation converged.
 #[allow(clippy::too_many_arguments)]
 fn run_method(
     mesh: &Mesh,
     topology: &Topology,
     method: &Method,
     original: &[[f32; 3]],
-    csr: (&[u32], &[u32]),
+    (offsets, neighbors, renumbering): (&[u32], &[u32], Option<&Renumbering>),
     scale: &[f32],
     edge_axes: Option<&[Option<u8>]>,
     iterations: usize,
 ) -> (Vec<[f32; 3]>, usize, f32, bool) {
+    // The umbrella kernels' adjacency, in the numbering of `original`.
+    let rows = || NeighbourLists::new(offsets, neighbors, renumbering);
     match *method {
         Method::Laplace { lambda } => {
-            let (p, s) = laplace::laplace(original, csr, scale, &[lambda], iterations, None);
+            let (p, s) = laplace::laplace(original, &rows(), scale, &[lambda], iterations, None);
             (p, iterations, s, false)
         }
         Method::Taubin { lambda, mu } => {
-            let (p, s) = laplace::laplace(original, csr, scale, &[lambda, mu], iterations, None);
+            let (p, s) =
+                laplace::laplace(original, &rows(), scale, &[lambda, mu], iterations, None);
             (p, iterations, s, false)
         }
         Method::Npc { lambda, voxel } => {
-            let (p, s) = laplace::laplace(original, csr, scale, &[lambda], iterations, Some(voxel));
+            let (p, s) =
+                laplace::laplace(original, &rows(), scale, &[lambda], iterations, Some(voxel));
             (p, iterations, s, false)
         }
         Method::Hc {
@@ -406,7 +415,7 @@ fn run_method(
             alpha,
             beta,
         } => {
-            let (p, s) = hc::hc(original, csr, scale, lambda, alpha, beta, iterations);
+            let (p, s) = hc::hc(original, &rows(), scale, lambda, alpha, beta, iterations);
             (p, iterations, s, false)
         }
         Method::Mcf { lambda } => {
@@ -433,7 +442,14 @@ fn run_method(
                 _ => constraints::Region::Box(voxel),
             };
             constraints::relax(
-                original, csr, scale, lambda, region, edge_axes, threshold, iterations,
+                original,
+                &rows(),
+                scale,
+                lambda,
+                region,
+                edge_axes,
+                threshold,
+                iterations,
             )
         }
     }
@@ -451,14 +467,14 @@ pub fn boundary_vertices(topology: &Topology) -> Vec<bool> {
 }
 
 /// Largest per-vertex distance between two position buffers (mm); order-independent.
-pub(crate) fn max_step(a: &[[f32; 3]], b: &[[f32; 3]]) -> f32 {
-    use rayon::prelude::*;
+pub(crate) fn max_step<P: Xyz>(a: &[P], b: &[P]) -> f32 {
     a.par_chunks(CHUNK)
         .zip(b.par_chunks(CHUNK))
         .map(|(x, y)| {
             x.iter()
                 .zip(y)
                 .map(|(p, q)| {
+                    let (p, q) = (p.xyz(), q.xyz());
                     let d = [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
                     d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
                 })
@@ -466,6 +482,23 @@ pub(crate) fn max_step(a: &[[f32; 3]], b: &[[f32; 3]]) -> f32 {
         })
         .reduce(|| 0.0, f32::max)
         .sqrt()
+}
+
+/// A position buffer's element: plain or padded (mm).
+pub(crate) trait Xyz: Copy + Sync {
+    fn xyz(self) -> [f32; 3];
+}
+
+impl Xyz for [f32; 3] {
+    fn xyz(self) -> [f32; 3] {
+        self
+    }
+}
+
+impl Xyz for crate::mesh::umbrella::Padded {
+    fn xyz(self) -> [f32; 3] {
+        self.truncate().to_array()
+    }
 }
 
 /// Default bound on how far smoothing may move a vertex, in voxel diagonals: staircase removal
@@ -569,7 +602,7 @@ mod tests {
                 &topology,
                 &method,
                 mesh.positions(),
-                (offsets, neighbors),
+                (offsets, neighbors, None),
                 &scale,
                 axes.as_deref(),
                 4,
