@@ -386,6 +386,8 @@ pub fn smooth(triangles: usize, iterations: usize, repeat: usize) -> SmoothBench
 pub struct ContextBench {
     pub n_vertices: usize,
     pub n_triangles: usize,
+    /// Whether the vertices were renumbered by a seeded permutation (faces keep their order).
+    pub shuffled: bool,
     pub threads: usize,
     pub topology_s: f64,
     pub stack_axis_s: f64,
@@ -410,12 +412,14 @@ pub struct ContextBench {
 
 /// Times context analysis on the `big` phantom of about `triangles` triangles, and exact
 /// distance queries for about as many points (face centroids moved 1.5 mm off the surface)
-/// against the same mesh as a reference.
-pub fn context(triangles: usize, repeat: usize) -> ContextBench {
+/// against the same mesh as a reference; with `shuffle`, on a seeded permutation of its vertex
+/// numbering.
+pub fn context(triangles: usize, shuffle: bool, repeat: usize) -> ContextBench {
     use crate::analysis::{detect_caps, stack_axis, CapParams, StackAxisParams};
     use crate::spatial::TriangleBvh;
     use crate::weights::{staircase_weights, StaircaseParams};
     let (mesh, _) = big_mesh(triangles);
+    let mesh = if shuffle { shuffled(&mesh, 7) } else { mesh };
     let (topology_s, topology) = best_of(repeat, || Topology::build(&mesh));
     let (stack_axis_s, _) = best_of(repeat, || {
         stack_axis(&mesh, &topology, &StackAxisParams::default())
@@ -472,6 +476,7 @@ pub fn context(triangles: usize, repeat: usize) -> ContextBench {
     ContextBench {
         n_vertices: mesh.n_vertices(),
         n_triangles: mesh.n_triangles(),
+        shuffled: shuffle,
         threads: rayon::current_num_threads(),
         topology_s,
         stack_axis_s,

@@ -9,6 +9,10 @@ pub enum Args {
         /// Approximate number of triangles of the `big` phantom (and of query points).
         #[arg(long, default_value_t = 1_000_000)]
         triangles: usize,
+        /// Permute vertex numbering (worst-case memory locality; faces and queries keep their
+        /// order).
+        #[arg(long)]
+        shuffle: bool,
         #[arg(long, default_value_t = 3)]
         repeat: usize,
         #[arg(long)]
@@ -77,17 +81,25 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     match args {
         Args::Context {
             triangles,
+            shuffle,
             repeat,
             json,
         } => {
-            let r = destair::bench::context(triangles, repeat);
+            let r = destair::bench::context(triangles, shuffle, repeat);
             if json {
                 println!("{}", serde_json::to_string_pretty(&r)?);
                 return Ok(());
             }
             println!(
-                "bench context: {} vertices, {} triangles, {} threads, best of {repeat}",
-                r.n_vertices, r.n_triangles, r.threads
+                "bench context: {} vertices, {} triangles{}, {} threads, best of {repeat}",
+                r.n_vertices,
+                r.n_triangles,
+                if r.shuffled {
+                    " (shuffled numbering)"
+                } else {
+                    ""
+                },
+                r.threads
             );
             println!("  topology           {:.4} s", r.topology_s);
             println!("  stack axis         {:.4} s", r.stack_axis_s);

@@ -93,6 +93,29 @@ fn bench_io_runs_small() {
     assert!(json["read_mmap_s"].as_f64().unwrap() > 0.0);
 }
 
+/// `bench context --shuffle` renumbers the vertices only: the same surface, so the same query
+/// distances as in the phantom's own numbering.
+#[test]
+fn bench_context_shuffled_measures_the_same_surface() {
+    let run = |shuffle: bool| {
+        let mut args = vec!["bench", "context", "--triangles", "20000", "--repeat", "1"];
+        if shuffle {
+            args.push("--shuffle");
+        }
+        args.push("--json");
+        let out = destair(&args);
+        assert_ok(&out);
+        serde_json::from_slice::<serde_json::Value>(&out.stdout).unwrap()
+    };
+    let (plain, shuffled) = (run(false), run(true));
+    assert_eq!(plain["shuffled"], false);
+    assert_eq!(shuffled["shuffled"], true);
+    assert_eq!(plain["n_vertices"], shuffled["n_vertices"]);
+    let mean = |j: &serde_json::Value| j["far_mean_distance_mm"].as_f64().unwrap();
+    assert!(mean(&plain) > 1.0, "{}", mean(&plain));
+    assert_eq!(mean(&plain), mean(&shuffled));
+}
+
 #[test]
 fn phantom_writes_meshes_and_description() {
     let dir = tempfile::tempdir().unwrap();
