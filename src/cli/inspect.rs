@@ -135,19 +135,22 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     };
     let loaded = read_input(&mesh, &options)?;
     let topology = destair::Topology::build(&loaded.mesh);
-    let report = destair::report::inspect::inspect(&mesh, &loaded, &topology);
-    let analysis = if context || export.is_some() {
-        let trees = ctx.reference_trees()?;
-        let refs: Vec<&destair::spatial::TriangleBvh> = trees.iter().collect();
-        Some(destair::weights::context_weights(
-            &loaded.mesh,
-            &topology,
-            &ctx.params(true),
-            &refs,
-        ))
+    let trees = if context || export.is_some() {
+        Some(ctx.reference_trees()?)
     } else {
         None
     };
+    // The report and the context analysis side by side: both only read the mesh, and each
+    // has serial stretches the other fills.
+    let (report, analysis) = rayon::join(
+        || destair::report::inspect::inspect(&mesh, &loaded, &topology),
+        || {
+            trees.as_ref().map(|trees| {
+                let refs: Vec<&destair::spatial::TriangleBvh> = trees.iter().collect();
+                destair::weights::context_weights(&loaded.mesh, &topology, &ctx.params(true), &refs)
+            })
+        },
+    );
     let summary = analysis
         .as_ref()
         .map(|a| destair::report::inspect::context_summary(a, loaded.mesh.n_vertices()));

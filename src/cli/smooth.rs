@@ -219,7 +219,28 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         }
         None => None,
     };
-    let estimate = destair::analysis::voxel_size(mesh, &topology);
+    // Context weights (as a cohort computes them: staircases when on, caps as `--caps` says,
+    // distances when references are given) unless given in a file, found beside the voxel
+    // size estimate: both only read the mesh, and each has serial stretches the other fills.
+    let trees = match weights {
+        None => ctx.reference_trees()?,
+        Some(_) => Vec::new(),
+    };
+    let (estimate, found) = rayon::join(
+        || destair::analysis::voxel_size(mesh, &topology),
+        || match weights {
+            None => {
+                let refs: Vec<&destair::spatial::TriangleBvh> = trees.iter().collect();
+                Ok(destair::weights::context_weights(
+                    mesh,
+                    &topology,
+                    &ctx.params(staircase),
+                    &refs,
+                ))
+            }
+            Some(path) => Err(path),
+        },
+    );
     let voxel = match (voxel, method.needs_voxel()) {
         (Some(v), needs) => {
             if needs && estimate.is_irregular() {
@@ -248,19 +269,13 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     let kind = method;
     let method = kind.build(&params, voxel.unwrap_or([1.0; 3]));
     let iterations = iterations.unwrap_or(kind.default_iterations());
-    // Context weights always (as a cohort computes them): staircases when on, caps as
-    // `--caps` says, distances when references are given.
-    let weights = match weights {
-        None => {
-            let trees = ctx.reference_trees()?;
-            let refs: Vec<&destair::spatial::TriangleBvh> = trees.iter().collect();
-            let analysis =
-                destair::weights::context_weights(mesh, &topology, &ctx.params(staircase), &refs);
+    let weights = match found {
+        Ok(analysis) => {
             let summary = destair::report::inspect::context_summary(&analysis, mesh.n_vertices());
             eprint!("{}", summary.to_text());
             analysis.weights
         }
-        Some(path) => {
+        Err(path) => {
             let options = ReadOptions {
                 keep_vertex_properties: true,
                 ..Default::default()
