@@ -27,17 +27,7 @@ pub fn permutation(n: usize, seed: u64) -> Vec<u32> {
 /// The mesh with vertex `old[i]` numbered i (`old` a permutation of its vertices); the faces keep
 /// their order.
 pub fn renumbered(mesh: &Mesh, old: &[u32]) -> Mesh {
-    let mut new = vec![0u32; old.len()];
-    for (i, &v) in old.iter().enumerate() {
-        new[v as usize] = i as u32;
-    }
-    let positions = old.iter().map(|&v| mesh.positions()[v as usize]).collect();
-    let triangles = mesh
-        .triangles()
-        .iter()
-        .map(|t| t.map(|v| new[v as usize]))
-        .collect();
-    Mesh::from_checked_parts(positions, triangles)
+    crate::mesh::order::Renumbering::from_old(old.to_vec()).mesh(mesh)
 }
 
 /// A closed torus of `rings` x `segments` quads split into triangles (2 x rings x segments

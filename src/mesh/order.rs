@@ -186,15 +186,29 @@ pub fn scanline(positions: &[[f32; 3]], offsets: &[u32], neighbors: &[u32]) -> R
         })
         .collect();
     keyed.par_sort_unstable();
-    let old: Vec<u32> = keyed.into_iter().map(|(_, v)| v).collect();
-    let mut new = vec![0u32; n];
-    for (i, &v) in old.iter().enumerate() {
-        new[v as usize] = i as u32;
-    }
-    Renumbering { old, new }
+    Renumbering::from_old(keyed.into_iter().map(|(_, v)| v).collect())
 }
 
 impl Renumbering {
+    /// The renumbering that gives vertex `old[i]` number i (`old` a permutation of 0..n).
+    pub fn from_old(old: Vec<u32>) -> Self {
+        let mut new = vec![0u32; old.len()];
+        for (i, &v) in old.iter().enumerate() {
+            new[v as usize] = i as u32;
+        }
+        Renumbering { old, new }
+    }
+
+    /// The mesh in the new numbering: the same surface, its faces in the same order.
+    pub fn mesh(&self, mesh: &Mesh) -> Mesh {
+        let triangles = mesh
+            .triangles()
+            .par_iter()
+            .map(|t| t.map(|v| self.new[v as usize]))
+            .collect();
+        Mesh::from_checked_parts(self.gather(mesh.positions()), triangles)
+    }
+
     /// Per-vertex values in the new numbering.
     pub fn gather<T: Copy + Send + Sync>(&self, values: &[T]) -> Vec<T> {
         self.old.par_iter().map(|&v| values[v as usize]).collect()

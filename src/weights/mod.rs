@@ -84,6 +84,11 @@ impl VertexWeights {
         }
     }
 
+    /// The weights of a mesh renumbered by `order`, in the mesh's own numbering.
+    pub fn scattered(&self, order: &crate::mesh::order::Renumbering) -> VertexWeights {
+        VertexWeights(order.scatter(&self.0))
+    }
+
     /// The weights as a plain vector.
     pub fn into_inner(self) -> Vec<f32> {
         self.0

@@ -605,3 +605,117 @@ fn no_caps_on_a_rounded_blob_or_the_open_aneurysm_in_any_rotation() {
         }
     }
 }
+
+/// A scattered numbering is analysed in scanline order and put back: the same staircases, the
+/// same caps and the same weights (to float rounding) as an analysis in the mesh's own order,
+/// and as the phantom in its own numbering. The mesh is a 200 K triangle stair-stepped blob
+/// beside the tilted cap cylinder (three caps, one found only on the smoothed copy), shuffled,
+/// with the cylinder as a reference structure.
+#[test]
+fn a_scattered_mesh_gets_the_context_of_its_own_order() {
+    use destair::mesh::order::is_scattered;
+    use destair::weights::context::context_in_mesh_order;
+    let blob = destair::phantom::big_case(200_000, &PhantomOptions::default()).meshes;
+    let cylinder = rotated("cap-cylinder", 20.0, 35.0).meshes;
+    let (blob, cylinder) = (&blob[0].1, &cylinder[0].1);
+    let mut positions = blob.positions().to_vec();
+    let shift = blob.n_vertices() as u32;
+    positions.extend(
+        cylinder
+            .positions()
+            .iter()
+            .map(|p| [p[0] + 400.0, p[1], p[2]]),
+    );
+    let mut triangles = blob.triangles().to_vec();
+    triangles.extend(cylinder.triangles().iter().map(|t| t.map(|v| v + shift)));
+    let phantom = Mesh::new(positions, triangles).unwrap();
+    let old = destair::bench::permutation(phantom.n_vertices(), 11);
+    let mesh = destair::bench::renumbered(&phantom, &old);
+    let topology = Topology::build(&mesh);
+    let (offsets, neighbors) = topology.neighbor_csr();
+    assert!(is_scattered(offsets, neighbors));
+    let reference = TriangleBvh::build(cylinder);
+    let params = ContextParams::default();
+    let fast = context_weights(&mesh, &topology, &params, &[&reference]);
+    let direct = context_in_mesh_order(&mesh, &topology, &params, &[&reference]);
+    // The phantom's own analysis, renumbered like the mesh (vertex i is the phantom's old[i]).
+    let own = context_weights(&phantom, &Topology::build(&phantom), &params, &[&reference]);
+    let n = mesh.n_vertices();
+    for (what, other, renumber) in [("own order", &direct, false), ("phantom", &own, true)] {
+        let at = |v: usize| if renumber { old[v] as usize } else { v };
+        let (a, b) = (fast.axis.unwrap(), other.axis.unwrap());
+        let dot: f32 = (0..3).map(|k| a[k] * b[k]).sum();
+        assert!(dot > 1.0 - 1e-6, "{what}: axes {a:?} and {b:?}");
+        let (s, t) = (
+            fast.staircase.as_ref().unwrap(),
+            other.staircase.as_ref().unwrap(),
+        );
+        let flips = (0..n)
+            .filter(|&v| s.is_staircase[v] != t.is_staircase[at(v)])
+            .count();
+        assert_eq!(flips, 0, "{what}: staircase flags");
+        assert!(
+            s.n_staircase() > 1000,
+            "{what}: {} staircase vertices",
+            s.n_staircase()
+        );
+        assert!((s.tau - t.tau).abs() <= 1e-6 * t.tau, "{what}: tau");
+        let largest = |x: &dyn Fn(usize) -> f64| (0..n).map(x).fold(0.0f64, f64::max);
+        let weight_diff = largest(&|v| {
+            (fast.weights.as_slice()[v] - other.weights.as_slice()[at(v)]).abs() as f64
+        });
+        let distance_diff = largest(&|v| {
+            let (d, e) = (s.distance_mm[v], t.distance_mm[at(v)]);
+            if d.is_finite() || e.is_finite() {
+                (d - e).abs() as f64
+            } else {
+                0.0
+            }
+        });
+        let reference_diff = largest(&|v| {
+            (fast.reference_distance_mm.as_ref().unwrap()[v]
+                - other.reference_distance_mm.as_ref().unwrap()[at(v)])
+            .abs()
+        });
+        eprintln!(
+            "{what}: largest difference of weights {weight_diff:e}, staircase distances \
+             {distance_diff:e} mm, reference distances {reference_diff:e} mm"
+        );
+        assert!(
+            weight_diff <= 1e-5,
+            "{what}: weights differ by {weight_diff}"
+        );
+        assert!(
+            distance_diff <= 1e-4,
+            "{what}: distances differ by {distance_diff}"
+        );
+        assert!(reference_diff <= 1e-9, "{what}: reference distances");
+        // The same caps: faces kept their order, so the same face lists; the same vertices (in
+        // another order: a region's vertices come in the order its growth reached them).
+        let counts = |c: &destair::analysis::CapDetection| {
+            (
+                c.caps.len(),
+                c.n_from_smoothed_copy,
+                c.n_regions,
+                c.n_terraces,
+            )
+        };
+        assert_eq!(counts(&fast.caps), counts(&other.caps), "{what}");
+        assert!(
+            fast.caps.caps.len() >= 3 && fast.caps.n_from_smoothed_copy >= 1,
+            "{what}"
+        );
+        for (c, d) in fast.caps.caps.iter().zip(&other.caps.caps) {
+            assert_eq!(c.faces, d.faces, "{what}");
+            let mut mine: Vec<u32> = c.vertices.iter().map(|&v| at(v as usize) as u32).collect();
+            let mut theirs = d.vertices.clone();
+            mine.sort_unstable();
+            theirs.sort_unstable();
+            assert_eq!(mine, theirs, "{what}");
+            assert!(
+                (c.area_mm2 - d.area_mm2).abs() <= 1e-9 * d.area_mm2,
+                "{what}"
+            );
+        }
+    }
+}
