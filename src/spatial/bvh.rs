@@ -45,6 +45,86 @@ impl Default for Node {
     }
 }
 
+/// Where the triangles of a node's leaf children lie, lane k for child k (used only for
+/// leaves): within `r` (mm) of the centre `c` and within `t` (mm) of the plane through `c`
+/// with unit normal `n`. A leaf of a gently curved surface is a thin disk, which bounds the
+/// distance of a point well above the surface far more tightly than the leaf's box.
+#[derive(Debug, Clone, Copy, Default)]
+#[repr(C, align(64))]
+struct Disks {
+    c: [[f32; 4]; 3],
+    n: [[f32; 4]; 3],
+    r: [f32; 4],
+    t: [f32; 4],
+}
+
+/// The disk of the triangles `corners` (mm): centre, unit normal (area-weighted mean; zero for
+/// degenerate leaves), radius and thickness, both rounded up so no corner lies outside.
+fn leaf_disk(corners: &[[[f32; 3]; 3]]) -> ([f32; 3], [f32; 3], f32, f32) {
+    let mut sum = [0.0f64; 3];
+    let mut normal = [0.0f64; 3];
+    for t in corners {
+        let x = t.map(|p| p.map(f64::from));
+        let (u, v) = (sub(x[1], x[0]), sub(x[2], x[0]));
+        let cross = [
+            u[1] * v[2] - u[2] * v[1],
+            u[2] * v[0] - u[0] * v[2],
+            u[0] * v[1] - u[1] * v[0],
+        ];
+        for a in 0..3 {
+            normal[a] += cross[a];
+            sum[a] += x[0][a] + x[1][a] + x[2][a];
+        }
+    }
+    let count = (3 * corners.len()).max(1) as f64;
+    let c = sum.map(|x| (x / count) as f32);
+    let len = dot(normal, normal).sqrt();
+    let n = if len > 0.0 && len.is_finite() {
+        normal.map(|x| (x / len) as f32)
+    } else {
+        [0.0; 3]
+    };
+    // Radius and thickness about the stored centre and the stored normal made unit again.
+    let m = n.map(f64::from);
+    let m_len = dot(m, m).sqrt();
+    let m = if m_len > 0.0 { m.map(|x| x / m_len) } else { m };
+    let (mut r, mut t) = (0.0f64, 0.0f64);
+    for corner in corners.iter().flatten() {
+        let w = sub(corner.map(f64::from), c.map(f64::from));
+        r = r.max(dot(w, w).sqrt());
+        t = t.max(dot(w, m).abs());
+    }
+    let up = |x: f64| (x * (1.0 + 1e-6)) as f32 + f32::MIN_POSITIVE;
+    (c, n, up(r), up(t))
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Squared distance (mm^2) from `q` to lane `k`'s disk, a lower bound of its leaf's
+/// distance as [`reach2`] needs one: a point of the leaf is at most `t` off the plane and at
+/// most `r` from the centre, so its distance is at least the plane gap less `t` and the
+/// in-plane gap less `r`. In f64 from f32 inputs, the gaps shrunk by far more than the
+/// stored normal's rounding can move them (1e-6 and 1e-3 of the offset's 1-norm), the square
+/// by 1e-9 before rounding to f32.
+#[inline]
+fn disk_distance2(q: [f32; 3], d: &Disks, k: usize) -> f32 {
+    let w: [f64; 3] = std::array::from_fn(|a| f64::from(q[a]) - f64::from(d.c[a][k]));
+    let n: [f64; 3] = std::array::from_fn(|a| f64::from(d.n[a][k]));
+    let h = dot(w, n);
+    let ww = dot(w, w);
+    let w1 = w[0].abs() + w[1].abs() + w[2].abs();
+    let rho = (ww - h * h).max(0.0).sqrt();
+    let off_plane = (h.abs() - f64::from(d.t[k]) - 1e-6 * w1).max(0.0);
+    let in_plane = (rho - f64::from(d.r[k]) - 1e-3 * w1).max(0.0);
+    ((off_plane * off_plane + in_plane * in_plane) * (1.0 - 1e-9)) as f32
+}
+
 /// The nearest point of a surface to a query point.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Nearest {
@@ -77,6 +157,8 @@ struct Tree {
     order: Vec<u32>,
     /// Their corners (mm), copied in leaf order so a leaf reads one contiguous stretch.
     corners: Vec<[[f32; 3]; 3]>,
+    /// Per inner node, the disks of its leaf children.
+    disks: Vec<Disks>,
 }
 
 /// The best triangle of a search so far.
@@ -342,6 +424,15 @@ impl Tree {
                 // An unused slot's box is empty (infinitely far), which an infinite reach
                 // would still take.
                 if gap <= best.reach && node.child[k] != NO_CHILD {
+                    // A leaf's disk bounds it more tightly than its box from afar.
+                    let mut gap = gap;
+                    if node.count[k] > 0 {
+                        let disk = disk_distance2(p, &self.disks[child as usize], k);
+                        if disk > best.reach {
+                            continue;
+                        }
+                        gap = gap.max(disk);
+                    }
                     let mut at = n_hits;
                     // Insertion by decreasing distance; equal distances keep slot order.
                     while at > 0 && hits[at - 1].2 < gap {
@@ -405,11 +496,34 @@ impl Tree {
             subtree(&mut items, 0, &mut nodes, 0, &memo);
         }
         let order: Vec<u32> = items.par_iter().map(|item| item.f).collect();
-        let corners = order.par_iter().map(|&f| triangles[f as usize]).collect();
+        let corners: Vec<[[f32; 3]; 3]> =
+            order.par_iter().map(|&f| triangles[f as usize]).collect();
+        let disks = nodes
+            .par_iter()
+            .map(|node| {
+                let mut disks = Disks::default();
+                for k in 0..4 {
+                    if node.count[k] == 0 || node.child[k] == NO_CHILD {
+                        continue;
+                    }
+                    let start = (node.child[k] & !LEAF_BIT) as usize;
+                    let leaf = &corners[start..start + node.count[k] as usize];
+                    let (c, n, r, t) = leaf_disk(leaf);
+                    for a in 0..3 {
+                        disks.c[a][k] = c[a];
+                        disks.n[a][k] = n[a];
+                    }
+                    disks.r[k] = r;
+                    disks.t[k] = t;
+                }
+                disks
+            })
+            .collect();
         Tree {
             nodes,
             order,
             corners,
+            disks,
         }
     }
 }
@@ -575,6 +689,92 @@ mod tests {
                     .map(|n| (n.distance, n.triangle));
                 let slow = tree.fallback(p, within, keep);
                 assert_eq!(fast, slow, "round {round}, point {p:?}, within {within}");
+            }
+        }
+    }
+
+    /// The disk bound never exceeds the distance to any triangle of its leaf (checked in f64
+    /// against every triangle), for near-flat and folded leaves, tiny and huge offsets.
+    #[test]
+    fn a_leaf_disk_bounds_its_triangles_from_below() {
+        let mut rng = fastrand::Rng::with_seed(8);
+        for round in 0..2000 {
+            let scale = [0.01f32, 1.0, 300.0][round % 3];
+            let origin: [f32; 3] = std::array::from_fn(|_| (rng.f32() - 0.5) * 1000.0);
+            let bend = [0.0f32, 0.05, 1.0][(round / 3) % 3];
+            let n = 1 + rng.usize(0..LEAF);
+            let leaf: Vec<[[f32; 3]; 3]> = (0..n)
+                .map(|_| {
+                    std::array::from_fn(|_| {
+                        let (x, y) = (rng.f32() * scale, rng.f32() * scale);
+                        [
+                            origin[0] + x,
+                            origin[1] + y,
+                            origin[2] + bend * scale * rng.f32(),
+                        ]
+                    })
+                })
+                .collect();
+            let (c, nrm, r, t) = leaf_disk(&leaf);
+            let mut disks = Disks::default();
+            let k = round % 4;
+            for a in 0..3 {
+                disks.c[a][k] = c[a];
+                disks.n[a][k] = nrm[a];
+            }
+            (disks.r[k], disks.t[k]) = (r, t);
+            for _ in 0..20 {
+                let reach = [0.0f32, 0.5, 3.0, 100.0][rng.usize(0..4)] * scale;
+                let q: [f32; 3] = std::array::from_fn(|a| {
+                    c[a] + (rng.f32() - 0.5) * 2.0 * reach + if a == 2 { reach } else { 0.0 }
+                });
+                let bound = f64::from(disk_distance2(q, &disks, k));
+                for tri in &leaf {
+                    let d2 = point_triangle_distance2(q, *tri);
+                    assert!(
+                        bound <= d2,
+                        "round {round}: bound {bound} > {d2}, {q:?}, {tri:?}"
+                    );
+                }
+            }
+        }
+    }
+
+    /// Far above gently curved and flat surfaces, where the disks prune most leaves, and
+    /// with exact ties (points straight above grid vertices of a flat grid), the tree still
+    /// finds what testing every triangle finds.
+    #[test]
+    fn far_above_a_surface_the_tree_finds_what_testing_every_triangle_finds() {
+        let mut rng = fastrand::Rng::with_seed(5);
+        let grid = |m: usize, height: &dyn Fn(f32, f32) -> f32| {
+            let at = |i: usize, j: usize| {
+                let (x, y) = (i as f32, j as f32);
+                [x, y, height(x, y)]
+            };
+            let mut triangles = Vec::new();
+            for i in 0..m {
+                for j in 0..m {
+                    triangles.push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
+                    triangles.push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
+                }
+            }
+            triangles
+        };
+        let flat = grid(60, &|_, _| 0.0);
+        let dome = grid(60, &|x, y| {
+            -((x - 30.0).powi(2) + (y - 30.0).powi(2)) / 200.0
+        });
+        for triangles in [flat, dome] {
+            let tree = TriangleBvh::from_triangles(&triangles);
+            for i in 0..400 {
+                let (x, y) = if i % 2 == 0 {
+                    (rng.usize(5..55) as f32, rng.usize(5..55) as f32)
+                } else {
+                    (5.0 + rng.f32() * 50.0, 5.0 + rng.f32() * 50.0)
+                };
+                let p = [x, y, [3.0f32, 12.0, 40.0][i % 3]];
+                let fast = tree.nearest(p).map(|n| (n.distance, n.triangle));
+                assert_eq!(fast, tree.fallback(p, f64::INFINITY, |_| true), "{p:?}");
             }
         }
     }
