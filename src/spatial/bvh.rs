@@ -9,7 +9,7 @@
 //! (subtrees in parallel), nodes depth first, at most four triangles per leaf, with the
 //! leaves' corners copied in leaf order.
 
-use super::{point_triangle_distance, point_triangle_distance2, triangle_box};
+use super::{dot, point_triangle_distance, point_triangle_distance2, sub, triangle_box};
 use crate::mesh::Mesh;
 use rayon::prelude::*;
 
@@ -96,14 +96,6 @@ fn leaf_disk(corners: &[[[f32; 3]; 3]]) -> ([f32; 3], [f32; 3], f32, f32) {
     }
     let up = |x: f64| (x * (1.0 + 1e-6)) as f32 + f32::MIN_POSITIVE;
     (c, n, up(r), up(t))
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 /// Squared distance (mm^2) from `q` to lane `k`'s disk, a lower bound of its leaf's
