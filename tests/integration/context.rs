@@ -609,8 +609,10 @@ fn no_caps_on_a_rounded_blob_or_the_open_aneurysm_in_any_rotation() {
 /// A scattered numbering is analysed in scanline order and put back: the same staircases, the
 /// same caps and the same weights (to float rounding) as an analysis in the mesh's own order,
 /// and as the phantom in its own numbering. The mesh is a 200 K triangle stair-stepped blob
-/// beside the tilted cap cylinder (three caps, one found only on the smoothed copy), shuffled,
-/// with the cylinder as a reference structure.
+/// beside the tilted cap cylinder (five caps in all, measured: the cylinder's three, one of
+/// them found only on the smoothed copy, and two on the blob), shuffled, with the cylinder as
+/// a reference structure. `is_scattered` holds for it, which is what sends `context_weights`
+/// down the renumbered path.
 #[test]
 fn a_scattered_mesh_gets_the_context_of_its_own_order() {
     use destair::mesh::order::is_scattered;
