@@ -26,10 +26,7 @@ where
 
 /// Splits `data` into consecutive mutable slices of the given lengths (which must not add up
 /// to more than `data.len()`), for filling disjoint stretches of one array in parallel.
-pub(crate) fn split_lengths<T>(
-    lengths: impl Iterator<Item = usize>,
-    data: &mut [T],
-) -> Vec<&mut [T]> {
+pub fn split_lengths<T>(lengths: impl Iterator<Item = usize>, data: &mut [T]) -> Vec<&mut [T]> {
     let mut parts = Vec::new();
     let mut rest = data;
     for len in lengths {
@@ -38,28 +35,4 @@ pub(crate) fn split_lengths<T>(
         rest = tail;
     }
     parts
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn same_bits_for_one_and_two_threads() {
-        let term = |i: usize| 1.0 / (i as f64 + 0.37);
-        let n = 100_003;
-        let one = rayon::ThreadPoolBuilder::new()
-            .num_threads(1)
-            .build()
-            .unwrap()
-            .install(|| deterministic_sum(n, term));
-        let two = rayon::ThreadPoolBuilder::new()
-            .num_threads(2)
-            .build()
-            .unwrap()
-            .install(|| deterministic_sum(n, term));
-        assert_eq!(one.to_bits(), two.to_bits());
-        let serial: f64 = (0..n).map(term).sum();
-        assert!((one - serial).abs() < 1e-9 * serial);
-    }
 }

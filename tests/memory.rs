@@ -40,8 +40,8 @@ fn peak_memory_does_not_grow_with_the_cohort() {
     let _alone = ALONE.lock().unwrap_or_else(|e| e.into_inner());
     let small = tempfile::tempdir().unwrap();
     let large = tempfile::tempdir().unwrap();
-    let small_config = copies(small.path(), 20);
-    let large_config = copies(large.path(), 200);
+    let small_config = copies(small.path(), 10);
+    let large_config = copies(large.path(), 100);
     // One malloc arena: with several, which threads get an arena of their own depends on their
     // timing (other tests run beside this one) and moves the peak by 3 MB either way, which is
     // not what this test is about.
@@ -49,7 +49,7 @@ fn peak_memory_does_not_grow_with_the_cohort() {
     let (rss_small, code_small) = peak_rss_kb(&["run", small_config.to_str().unwrap()], &one_arena);
     let (rss_large, code_large) = peak_rss_kb(&["run", large_config.to_str().unwrap()], &one_arena);
     assert_eq!((code_small, code_large), (Some(0), Some(0)));
-    eprintln!("peak RSS: 20 cases {rss_small} kB, 200 cases {rss_large} kB");
+    eprintln!("peak RSS: 10 cases {rss_small} kB, 100 cases {rss_large} kB");
     // What grows with the cohort (case list, summary rows) is about 6 KB per case: ten times the
     // cases stays inside 20 % plus 1 MiB.
     assert!(

@@ -80,7 +80,7 @@ pub fn voxel_size(mesh: &Mesh, topology: &Topology) -> VoxelSizeEstimate {
 }
 
 /// Classifies one axis from its sorted non-zero edge offsets.
-fn axis_spacing(sorted: &[f64], zero_tol: f64) -> AxisSpacing {
+pub fn axis_spacing(sorted: &[f64], zero_tol: f64) -> AxisSpacing {
     if sorted.is_empty() {
         return AxisSpacing::NoSteps;
     }
@@ -116,86 +116,5 @@ fn axis_spacing(sorted: &[f64], zero_tol: f64) -> AxisSpacing {
             n_clusters: clusters.len(),
             share_explained: explained,
         }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn clusters_half_and_full_steps_with_noise() {
-        let mut v: Vec<f64> = (0..300)
-            .map(|i| 1.5 + (i % 7) as f64 * 1e-6)
-            .chain((0..200).map(|i| 3.0 - (i % 5) as f64 * 1e-6))
-            .collect();
-        v.sort_by(f64::total_cmp);
-        match axis_spacing(&v, 1e-6) {
-            AxisSpacing::Spacing { mm } => assert!((mm - 3.0).abs() < 1e-5),
-            other => panic!("{other:?}"),
-        }
-    }
-
-    #[test]
-    fn one_step_and_irregular() {
-        assert!(matches!(
-            axis_spacing(&[0.5; 10], 1e-7),
-            AxisSpacing::OneStep { .. }
-        ));
-        let spread: Vec<f64> = (1..100).map(|i| i as f64 * 0.01).collect();
-        assert!(matches!(
-            axis_spacing(&spread, 1e-7),
-            AxisSpacing::Irregular { .. }
-        ));
-        let wrong_ratio = [vec![1.0; 50], vec![3.0; 50]].concat();
-        assert!(matches!(
-            axis_spacing(&wrong_ratio, 1e-7),
-            AxisSpacing::Irregular { .. }
-        ));
-        assert_eq!(axis_spacing(&[], 1e-7), AxisSpacing::NoSteps);
-    }
-
-    /// A staircase strip whose vertices sit on grid-edge midpoints of a 0.45 x 0.7 x 3 mm grid
-    /// far from the origin (so float noise is real); each axis sees offsets h/2 and h.
-    fn midpoint_strip(rotate_deg: f32) -> Mesh {
-        let h = [0.45f32, 0.7, 3.0];
-        let origin = [-120.3f32, 87.1, 1013.0];
-        let (s, c) = rotate_deg.to_radians().sin_cos();
-        let mut positions = Vec::new();
-        let mut triangles = Vec::new();
-        let (mut a, mut z) = (0u32, 0u32);
-        for i in 0..40u32 {
-            // Half-step offsets along every axis alternate between 1 and 2 (h/2 and h).
-            let rows = [
-                [a as f32, 0.0, z as f32],
-                [a as f32 + 1.0, if i % 2 == 0 { 2.0 } else { 1.0 }, z as f32],
-            ];
-            for g in rows {
-                let p = [0.5 * g[0] * h[0], 0.5 * g[1] * h[1], 0.5 * g[2] * h[2]];
-                let (x, y) = (c * p[0] - s * p[1], s * p[0] + c * p[1]);
-                positions.push([origin[0] + x, origin[1] + y, origin[2] + p[2]]);
-            }
-            a += 1 + i % 2;
-            z += 1 + i % 2;
-            if i > 0 {
-                let (a, b, cc, d) = (2 * i - 2, 2 * i - 1, 2 * i, 2 * i + 1);
-                triangles.push([a, cc, b]);
-                triangles.push([b, cc, d]);
-            }
-        }
-        Mesh::new(positions, triangles).unwrap()
-    }
-
-    #[test]
-    fn reconstructs_grid_spacing_and_refuses_rotated_grids() {
-        let m = midpoint_strip(0.0);
-        let est = voxel_size(&m, &Topology::build(&m));
-        let got = est.spacing().unwrap_or_else(|| panic!("{est:?}"));
-        for (g, want) in got.iter().zip([0.45, 0.7, 3.0]) {
-            assert!((g - want).abs() < 1e-4, "{got:?}");
-        }
-        let r = midpoint_strip(30.0);
-        let est = voxel_size(&r, &Topology::build(&r));
-        assert!(est.spacing().is_none() && est.is_irregular(), "{est:?}");
     }
 }

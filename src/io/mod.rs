@@ -9,9 +9,9 @@ pub mod identity;
 pub mod obj;
 pub mod ply;
 pub mod stl;
-mod text;
+pub mod text;
 pub mod vtp;
-mod weld;
+pub mod weld;
 
 pub use atomic::{remove_stale_temp_files, write_atomically};
 pub use identity::{check_regular_file, file_id, same_file, ProtectedFiles};

@@ -1,7 +1,7 @@
 //! A byte cursor over text formats (PLY ASCII, STL ASCII, OBJ) that tracks line numbers.
 
 /// Position in a text buffer; lines count from 1.
-pub(crate) struct TextCursor<'a> {
+pub struct TextCursor<'a> {
     data: &'a [u8],
     pos: usize,
     line: usize,
@@ -14,7 +14,7 @@ fn is_inline_space(b: u8) -> bool {
 
 impl<'a> TextCursor<'a> {
     /// A cursor at `data[0]`, which is on line `first_line`.
-    pub(crate) fn new(data: &'a [u8], first_line: usize) -> Self {
+    pub fn new(data: &'a [u8], first_line: usize) -> Self {
         Self {
             data,
             pos: 0,
@@ -23,18 +23,18 @@ impl<'a> TextCursor<'a> {
     }
 
     /// Current line number (1-based).
-    pub(crate) fn line(&self) -> usize {
+    pub fn line(&self) -> usize {
         self.line
     }
 
     /// True when nothing but whitespace remains.
-    pub(crate) fn at_end(&mut self) -> bool {
+    pub fn at_end(&mut self) -> bool {
         self.skip_space();
         self.pos >= self.data.len()
     }
 
     /// Skips whitespace including line breaks.
-    pub(crate) fn skip_space(&mut self) {
+    pub fn skip_space(&mut self) {
         while let Some(&b) = self.data.get(self.pos) {
             if b == b'\n' {
                 self.line += 1;
@@ -46,14 +46,14 @@ impl<'a> TextCursor<'a> {
     }
 
     /// Skips spaces and tabs but stops at a line break.
-    pub(crate) fn skip_inline_space(&mut self) {
+    pub fn skip_inline_space(&mut self) {
         while self.data.get(self.pos).is_some_and(|&b| is_inline_space(b)) {
             self.pos += 1;
         }
     }
 
     /// The next token on the current line, or `None` at a line break or the end.
-    pub(crate) fn inline_token(&mut self) -> Option<&'a [u8]> {
+    pub fn inline_token(&mut self) -> Option<&'a [u8]> {
         self.skip_inline_space();
         let start = self.pos;
         while self
@@ -67,13 +67,13 @@ impl<'a> TextCursor<'a> {
     }
 
     /// The next token, crossing line breaks; `None` at the end.
-    pub(crate) fn token(&mut self) -> Option<&'a [u8]> {
+    pub fn token(&mut self) -> Option<&'a [u8]> {
         self.skip_space();
         self.inline_token()
     }
 
     /// Whether only spaces remain on the current line (then moves past its break).
-    pub(crate) fn finish_line(&mut self) -> bool {
+    pub fn finish_line(&mut self) -> bool {
         self.skip_inline_space();
         match self.data.get(self.pos) {
             None => true,
@@ -87,7 +87,7 @@ impl<'a> TextCursor<'a> {
     }
 
     /// The rest of the current line (without its break), moving past the break.
-    pub(crate) fn rest_of_line(&mut self) -> &'a [u8] {
+    pub fn rest_of_line(&mut self) -> &'a [u8] {
         let start = self.pos;
         while self.data.get(self.pos).is_some_and(|&b| b != b'\n') {
             self.pos += 1;
@@ -102,7 +102,7 @@ impl<'a> TextCursor<'a> {
 }
 
 /// Shows a token in an error message, shortened and with invalid UTF-8 replaced.
-pub(crate) fn show(token: &[u8]) -> String {
+pub fn show(token: &[u8]) -> String {
     let s = String::from_utf8_lossy(&token[..token.len().min(40)]).into_owned();
     if token.len() > 40 {
         format!("{s}...")
@@ -112,32 +112,11 @@ pub(crate) fn show(token: &[u8]) -> String {
 }
 
 /// Parses a decimal float token (also `nan`/`inf`, which callers then reject as non-finite).
-pub(crate) fn parse_f64(token: &[u8]) -> Option<f64> {
+pub fn parse_f64(token: &[u8]) -> Option<f64> {
     std::str::from_utf8(token).ok()?.parse().ok()
 }
 
 /// Parses a decimal integer token.
-pub(crate) fn parse_i64(token: &[u8]) -> Option<i64> {
+pub fn parse_i64(token: &[u8]) -> Option<i64> {
     std::str::from_utf8(token).ok()?.parse().ok()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn tokens_lines_and_ends() {
-        let mut c = TextCursor::new(b"a b\r\n\n  c\td\n", 1);
-        assert_eq!(c.inline_token(), Some(&b"a"[..]));
-        assert_eq!(c.inline_token(), Some(&b"b"[..]));
-        assert_eq!(c.inline_token(), None);
-        assert!(c.finish_line());
-        assert_eq!(c.line(), 2);
-        assert_eq!(c.token(), Some(&b"c"[..]));
-        assert_eq!(c.line(), 3);
-        assert!(!c.finish_line());
-        assert_eq!(c.rest_of_line(), b"d");
-        assert!(c.at_end());
-        assert_eq!(c.token(), None);
-    }
 }

@@ -14,14 +14,16 @@ const THUMB_PX: u32 = 96;
 const OUTLIER_Z: f64 = 3.5;
 
 /// A measure whose large values need a second look.
-struct Measure {
+pub struct Measure {
     name: &'static str,
     value: fn(&SummaryRow) -> Option<f64>,
     /// Below this (in the measure's unit) nothing is flagged, however unusual.
     floor: f64,
 }
 
-const MEASURES: [Measure; 3] = [
+/// The measures flagged on the index page: Hausdorff distance, volume change, reference
+/// distance loss.
+pub const MEASURES: [Measure; 3] = [
     Measure {
         name: "Hausdorff distance",
         value: |r| r.hausdorff_mm,
@@ -47,7 +49,7 @@ const MEASURES: [Measure; 3] = [
 
 /// Which rows are outliers of `measure`: modified z-score above 3.5 among the ok rows (with
 /// no spread at all, anything above the median), and above the measure's floor.
-fn outliers(rows: &[SummaryRow], measure: &Measure) -> Vec<bool> {
+pub fn outliers(rows: &[SummaryRow], measure: &Measure) -> Vec<bool> {
     let mut values: Vec<f64> = rows
         .iter()
         .filter(|r| r.status == "ok")
@@ -78,7 +80,7 @@ fn outliers(rows: &[SummaryRow], measure: &Measure) -> Vec<bool> {
 }
 
 /// The median of `values` (sorted in place); 0 for none.
-fn median(values: &mut [f64]) -> f64 {
+pub fn median(values: &mut [f64]) -> f64 {
     values.sort_by(f64::total_cmp);
     let n = values.len();
     if n == 0 {
@@ -93,7 +95,7 @@ fn median(values: &mut [f64]) -> f64 {
 
 /// `to` as a relative link from the folder `from` (both made absolute first); `None` when no
 /// relative path exists (another drive).
-fn relative_link(from: &Path, to: &Path) -> Option<String> {
+pub fn relative_link(from: &Path, to: &Path) -> Option<String> {
     let abs = |p: &Path| std::fs::canonicalize(p).ok();
     let (from, to) = (abs(from)?, abs(to)?);
     let a: Vec<Component> = from.components().collect();
@@ -267,70 +269,4 @@ pub fn index_page(dir: &Path, summary: &Summary) -> String {
     }
     body.push_str("</tbody>\n</table>\n");
     page("destair cohort", &body)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn row(case: &str, status: &str, hausdorff: f64) -> SummaryRow {
-        let mut r = super::super::summary::rows_of(&serde_json::json!({
-            "case": case,
-            "status": status,
-            "structures": [{"name": "tumor", "status": status,
-                "metrics": {"distance": {"hausdorff_mm": hausdorff}, "volume_percent": 100.0}}]
-        }))
-        .remove(0);
-        r.report_dir = PathBuf::from(case);
-        r
-    }
-
-    #[test]
-    fn the_outlier_and_the_failed_case_come_first_and_are_marked() {
-        let mut rows: Vec<SummaryRow> = (0..12)
-            .map(|k| row(&format!("c{k:02}"), "ok", 0.2 + 0.01 * k as f64))
-            .collect();
-        rows[5].hausdorff_mm = Some(3.0);
-        rows.push(row("c99", "failed", f64::NAN));
-        let flagged = outliers(&rows, &MEASURES[0]);
-        assert_eq!(flagged.iter().filter(|&&f| f).count(), 1);
-        assert!(flagged[5]);
-        let summary = Summary {
-            n_cases: 13,
-            n_ok: 12,
-            failed: vec!["c99".into()],
-            rows,
-            ..Default::default()
-        };
-        let html = index_page(Path::new("/nonexistent"), &summary);
-        let failed_at = html.find(">c99<").unwrap();
-        let outlier_at = html.find(">c05<").unwrap();
-        let other_at = html.find(">c00<").unwrap();
-        assert!(failed_at < outlier_at && outlier_at < other_at);
-        assert!(html.contains("class=\"num flag\" data-v=\"3\">3.0000"));
-        assert_eq!(
-            html.matches("<tr><td>").count(),
-            13,
-            "one row per structure"
-        );
-    }
-
-    #[test]
-    fn medians_and_relative_links() {
-        assert_eq!(median(&mut [3.0, 1.0, 2.0]), 2.0);
-        assert_eq!(median(&mut [4.0, 1.0, 2.0, 3.0]), 2.5);
-        let t = tempfile::tempdir().unwrap();
-        std::fs::create_dir_all(t.path().join("out/a b/c")).unwrap();
-        let out = t.path().join("out");
-        assert_eq!(
-            relative_link(&out, &out.join("a b/c")).as_deref(),
-            Some("a b/c")
-        );
-        assert_eq!(
-            relative_link(&out.join("a b/c"), &out).as_deref(),
-            Some("../..")
-        );
-        assert_eq!(relative_link(&out, &out).as_deref(), Some("."));
-        assert_eq!(relative_link(&out, Path::new("/nonexistent/x")), None);
-    }
 }

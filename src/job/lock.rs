@@ -15,7 +15,8 @@ use thiserror::Error;
 /// Name of the marker and lock file in an output root.
 pub const MARKER: &str = ".destair-output";
 
-const MARKER_TEXT: &str =
+/// What the marker file says to a person who opens it.
+pub const MARKER_TEXT: &str =
     "This folder holds destair outputs. destair never looks for cases below a folder\n\
 holding this file, and locks this file while a run writes here. Keep it.\n";
 
@@ -55,7 +56,7 @@ pub enum LockScope {
 
 impl LockScope {
     /// The byte this scope locks; shards and cases never share one (cases hash into 2^40..2^41).
-    fn byte(&self) -> i64 {
+    pub fn byte(&self) -> i64 {
         match self {
             LockScope::Root => 0,
             LockScope::Shard { index, count } => {
@@ -233,44 +234,4 @@ fn flock_for(byte: i64, mode: Option<LockMode>) -> libc::flock {
     fl.l_start = byte as libc::off_t;
     fl.l_len = 1;
     fl
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn scopes_have_distinct_bytes() {
-        let mut seen = std::collections::HashSet::new();
-        assert!(seen.insert(LockScope::Root.byte()));
-        for n in 1..40 {
-            for i in 0..n {
-                assert!(seen.insert(LockScope::Shard { index: i, count: n }.byte()));
-            }
-        }
-        for c in 0..1000 {
-            let b = LockScope::Case(format!("case-{c}")).byte();
-            assert!(b >= 1 << 40 && seen.insert(b));
-        }
-    }
-
-    #[test]
-    fn marker_is_written_once_and_root_must_be_a_folder() {
-        let dir = tempfile::tempdir().unwrap();
-        let root = dir.path().join("out");
-        let lock = OutputLock::open(&root).unwrap();
-        assert!(is_output_root(&root));
-        lock.lock(&LockScope::Root, LockMode::Exclusive, Wait::No)
-            .unwrap();
-        drop(lock);
-        let _again = OutputLock::open(&root).unwrap();
-        assert_eq!(
-            std::fs::read_to_string(root.join(MARKER)).unwrap(),
-            MARKER_TEXT
-        );
-        let file = dir.path().join("file");
-        std::fs::write(&file, b"x").unwrap();
-        let err = OutputLock::open(&file).unwrap_err().to_string();
-        assert!(err.contains("not a folder"), "{err}");
-    }
 }

@@ -16,7 +16,7 @@ use rayon::prelude::*;
 const BITS: u32 = 21;
 
 /// Spreads the low 21 bits of x so that two zero bits follow each.
-fn spread(x: u64) -> u64 {
+pub fn spread(x: u64) -> u64 {
     let mut x = x & ((1 << BITS) - 1);
     x = (x | x << 32) & 0x001f_0000_0000_ffff;
     x = (x | x << 16) & 0x001f_0000_ff00_00ff;
@@ -217,106 +217,5 @@ impl Renumbering {
     /// Per-vertex values of the new numbering back in the old one.
     pub fn scatter<T: Copy + Send + Sync>(&self, values: &[T]) -> Vec<T> {
         self.new.par_iter().map(|&i| values[i as usize]).collect()
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn spread_puts_two_zero_bits_after_each_bit() {
-        assert_eq!(spread(0b1), 0b1);
-        assert_eq!(spread(0b11), 0b1001);
-        assert_eq!(spread(0b101), 0b1_000_001);
-        // Bit 20 goes to bit 60; higher bits are dropped.
-        assert_eq!(spread(1 << 20), 1 << 60);
-        assert_eq!(spread(1 << 21), 0);
-    }
-
-    #[test]
-    fn reordering_keeps_every_face_and_follows_the_curve() {
-        // A 2 x 2 grid of quads written in a scattered vertex order.
-        let positions = vec![
-            [2.0, 2.0, 0.0],
-            [0.0, 0.0, 0.0],
-            [1.0, 1.0, 0.0],
-            [2.0, 0.0, 0.0],
-            [0.0, 2.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0],
-            [2.0, 1.0, 0.0],
-            [1.0, 2.0, 0.0],
-        ];
-        let at = |x: f32, y: f32| {
-            positions
-                .iter()
-                .position(|p| p[0] == x && p[1] == y)
-                .unwrap() as u32
-        };
-        let mut triangles = Vec::new();
-        for (x, y) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)] {
-            triangles.push([at(x, y), at(x + 1.0, y), at(x + 1.0, y + 1.0)]);
-            triangles.push([at(x, y), at(x + 1.0, y + 1.0), at(x, y + 1.0)]);
-        }
-        let mesh = Mesh::new(positions.clone(), triangles.clone()).unwrap();
-        let (ordered, face_order) = locality_ordered(&mesh);
-        // Z-order over the 3 x 3 grid: (0,0) (1,0) (0,1) (1,1) first.
-        let q = ordered.positions();
-        assert_eq!(
-            &q[..4],
-            &[
-                [0.0, 0.0, 0.0],
-                [1.0, 0.0, 0.0],
-                [0.0, 1.0, 0.0],
-                [1.0, 1.0, 0.0]
-            ]
-        );
-        // Every new face is the old face it says it was, corner for corner.
-        let mut seen = vec![false; triangles.len()];
-        for (t, &f) in ordered.triangles().iter().zip(&face_order) {
-            let old = triangles[f as usize].map(|v| positions[v as usize]);
-            assert_eq!(t.map(|v| q[v as usize]), old);
-            seen[f as usize] = true;
-        }
-        assert!(seen.iter().all(|&s| s));
-        // Faces come in order of their smallest vertex.
-        let firsts: Vec<u32> = ordered
-            .triangles()
-            .iter()
-            .map(|t| *t.iter().min().unwrap())
-            .collect();
-        assert!(firsts.windows(2).all(|w| w[0] <= w[1]));
-    }
-
-    #[test]
-    fn scanline_renumbers_a_scattered_torus_and_keeps_every_neighbour_list() {
-        let torus = crate::bench::torus(300, 200);
-        let t = crate::mesh::Topology::build(&torus);
-        assert!(!is_scattered(t.neighbor_csr().0, t.neighbor_csr().1));
-        let mesh = crate::bench::shuffled(&torus, 9);
-        let topology = crate::mesh::Topology::build(&mesh);
-        let (offsets, neighbors) = topology.neighbor_csr();
-        assert!(is_scattered(offsets, neighbors));
-        let r = scanline(mesh.positions(), offsets, neighbors);
-        // A permutation, and `new` is its inverse.
-        let mut seen = vec![false; mesh.n_vertices()];
-        for (i, &v) in r.old.iter().enumerate() {
-            assert!(!seen[v as usize]);
-            seen[v as usize] = true;
-            assert_eq!(r.new[v as usize], i as u32);
-        }
-        assert_eq!(r.old.len(), mesh.n_vertices());
-        // The adjacency in the new numbering is no longer scattered.
-        let (mut o2, mut n2) = (vec![0u32], Vec::new());
-        for &v in &r.old {
-            let list = &neighbors[offsets[v as usize] as usize..offsets[v as usize + 1] as usize];
-            n2.extend(list.iter().map(|&w| r.new[w as usize]));
-            o2.push(n2.len() as u32);
-        }
-        assert!(!is_scattered(&o2, &n2));
-        // Gathering then scattering gives the values back.
-        let values: Vec<u32> = (0..mesh.n_vertices() as u32).map(|v| v * 7).collect();
-        assert_eq!(r.scatter(&r.gather(&values)), values);
     }
 }

@@ -59,7 +59,7 @@ fn midpoint(edge: usize) -> [f64; 3] {
 }
 
 /// Bit mask of the faces an edge lies on.
-fn edge_faces(edge: usize) -> u8 {
+pub fn edge_faces(edge: usize) -> u8 {
     let (a, b) = EDGES[edge];
     FACES
         .iter()
@@ -69,13 +69,13 @@ fn edge_faces(edge: usize) -> u8 {
 }
 
 /// Triangles (as cube-edge triples, outward-oriented) for each of the 256 configurations.
-pub(crate) fn case_table() -> &'static [Vec<[u8; 3]>; 256] {
+pub fn case_table() -> &'static [Vec<[u8; 3]>; 256] {
     static TABLE: OnceLock<[Vec<[u8; 3]>; 256]> = OnceLock::new();
     TABLE.get_or_init(|| std::array::from_fn(|config| triangulate_case(config as u8)))
 }
 
 /// Directed contour segments on the cube faces for one configuration.
-fn face_segments(config: u8) -> Vec<(usize, usize)> {
+pub fn face_segments(config: u8) -> Vec<(usize, usize)> {
     let inside = |c: usize| config >> c & 1 == 1;
     let mut segments = Vec::new();
     for (q, normal) in FACES {
@@ -398,61 +398,5 @@ fn crossing(volume: &LabelVolume, field: &[f32], index: [u64; 3], axis: usize) -
         (fa / (fa - fb)).clamp(0.02, 0.98)
     } else {
         0.5
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::mesh::Topology;
-
-    #[test]
-    fn every_configuration_chains_into_closed_loops_without_face_diagonals() {
-        for config in 0..=255u8 {
-            let segments = face_segments(config);
-            let mut starts = [0; 12];
-            let mut ends = [0; 12];
-            for &(a, b) in &segments {
-                starts[a] += 1;
-                ends[b] += 1;
-            }
-            assert_eq!(starts, ends, "config {config:08b}");
-            assert!(starts.iter().all(|&s| s <= 1), "config {config:08b}");
-            // Every edge with a sign change is a vertex of some triangle.
-            let used: u16 = case_table()[config as usize]
-                .iter()
-                .flatten()
-                .fold(0, |m, &e| m | 1 << e);
-            let changed: u16 = (0..12)
-                .filter(|&e| starts[e] == 1)
-                .fold(0, |m, e| m | 1 << e);
-            assert_eq!(used, changed, "config {config:08b}");
-            for t in &case_table()[config as usize] {
-                for k in 0..3 {
-                    let (p, q) = (t[k] as usize, t[(k + 1) % 3] as usize);
-                    let polygon_edge = segments.contains(&(p, q));
-                    let shares = edge_faces(p) & edge_faces(q) != 0;
-                    assert!(
-                        polygon_edge || !shares,
-                        "config {config:08b}: diagonal in a face"
-                    );
-                }
-            }
-        }
-    }
-
-    #[test]
-    fn single_voxel_is_an_octahedron_pointing_outward() {
-        let mut v = LabelVolume::new([3, 3, 3], [1.0, 2.0, 3.0], [0.0; 3]);
-        let i = v.index(1, 1, 1);
-        v.labels[i] = 1;
-        let m = extract_surface(&v, 1, BorderEnds::Capped);
-        assert_eq!((m.n_vertices(), m.n_triangles()), (6, 8));
-        let t = Topology::build(&m);
-        assert!(t.is_closed_oriented_manifold());
-        assert_eq!(t.euler_characteristic(), 2);
-        // Octahedron with half-diagonals 0.5, 1.0, 1.5 mm: volume = 4/3 * a * b * c.
-        let vol = crate::mesh::geometry::signed_volume(&m);
-        assert!((vol - 4.0 / 3.0 * 0.5 * 1.0 * 1.5).abs() < 1e-9, "{vol}");
     }
 }

@@ -2,7 +2,7 @@
 //! and by most colour-blind readers) and fixed colours for classes.
 
 /// Viridis at nine evenly spaced stops (matplotlib's table, sRGB).
-const VIRIDIS: [[u8; 3]; 9] = [
+pub const VIRIDIS: [[u8; 3]; 9] = [
     [68, 1, 84],
     [71, 45, 123],
     [59, 82, 139],
@@ -80,7 +80,7 @@ impl Scale {
 }
 
 /// The smallest of 1, 2, 5 x 10^k that is >= x (x > 0).
-fn round_up(x: f32) -> f32 {
+pub fn round_up(x: f32) -> f32 {
     if !(x > 0.0 && x.is_finite()) {
         return 1.0;
     }
@@ -91,34 +91,4 @@ fn round_up(x: f32) -> f32 {
         }
     }
     10.0 * p
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn viridis_ends_and_middle() {
-        assert_eq!(viridis(0.0), VIRIDIS[0]);
-        assert_eq!(viridis(1.0), VIRIDIS[8]);
-        assert_eq!(viridis(0.5), VIRIDIS[4]);
-        assert_eq!(viridis(-3.0), VIRIDIS[0]);
-        assert_eq!(viridis(f32::NAN), MISSING);
-    }
-
-    #[test]
-    fn scales_round_up_to_readable_ends() {
-        assert_eq!(round_up(0.37), 0.5);
-        assert_eq!(round_up(1.0), 1.0);
-        assert_eq!(round_up(1.2), 2.0);
-        assert_eq!(round_up(7.0), 10.0);
-        assert_eq!(round_up(0.0012), 0.002);
-        let s = Scale::zero_to_max(&[0.1, f32::NAN, 0.3], 0.01, "mm");
-        assert_eq!((s.lo, s.hi), (0.0, 0.5));
-        assert_eq!(s.colour(0.0), VIRIDIS[0]);
-        assert_eq!(s.colour(0.5), VIRIDIS[8]);
-        assert_eq!(s.colour(f32::INFINITY), MISSING);
-        // All zero: the floor keeps the scale open.
-        assert_eq!(Scale::zero_to_max(&[0.0], 0.01, "mm").hi, 0.01);
-    }
 }

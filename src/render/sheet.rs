@@ -8,7 +8,7 @@ use super::Picture;
 /// Text colour on sheets.
 const INK: [u8; 3] = [30, 30, 30];
 /// Space between panels and around the sheet (px).
-const GAP: u32 = 8;
+pub const GAP: u32 = 8;
 /// Height of the heading and of each panel title (px).
 const HEADING: u32 = 24;
 const TITLE: u32 = 20;
@@ -161,7 +161,7 @@ fn draw_legend(sheet: &mut Picture, legend: &Legend, x: u32, y: u32, width: u32)
 }
 
 /// A legend number: few digits, no trailing zeros.
-fn number(v: f32) -> String {
+pub fn number(v: f32) -> String {
     let s = format!("{v:.3}");
     let s = s.trim_end_matches('0').trim_end_matches('.');
     if s == "-0" {
@@ -172,42 +172,11 @@ fn number(v: f32) -> String {
 }
 
 /// `text` cut (with "..") to fit `width` pixels at `scale`.
-fn fit(text: &str, width: u32, scale: u32) -> String {
+pub fn fit(text: &str, width: u32, scale: u32) -> String {
     let max = (width / (8 * scale.max(1))) as usize;
     if text.chars().count() <= max {
         return text.to_string();
     }
     let keep = max.saturating_sub(2);
     text.chars().take(keep).chain("..".chars()).collect()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn sheets_hold_their_panels_and_encode_to_the_same_png_bytes() {
-        let panel = |c: [u8; 3]| Panel {
-            title: "a title".into(),
-            picture: Picture::blank(40, 40, c),
-            legend: Legend::Scale(Scale {
-                lo: 0.0,
-                hi: 0.5,
-                unit: "mm".into(),
-            }),
-        };
-        let sheet = compose_sheet("case / structure", &[panel([10, 20, 30]), panel([1, 2, 3])]);
-        assert_eq!(sheet.width, 2 * 40 + 3 * GAP);
-        let (x0, y0) = panel_origin(0, 40);
-        let (x1, y1) = panel_origin(1, 40);
-        assert_eq!(sheet.pixel(x0 + 20, y0 + 20), Some([10, 20, 30]));
-        assert_eq!(sheet.pixel(x1 + 20, y1 + 20), Some([1, 2, 3]));
-        assert_eq!(sheet.pixel(x1 - 1, y1 + 20), Some([255; 3]));
-        let png = sheet.encode_png();
-        assert_eq!(&png[1..4], b"PNG");
-        assert_eq!(png, sheet.encode_png());
-        assert_eq!(number(0.5), "0.5");
-        assert_eq!(number(2.0), "2");
-        assert_eq!(fit("abcdefgh", 48, 1), "abcd..");
-    }
 }

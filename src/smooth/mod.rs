@@ -8,10 +8,10 @@
 //! in parallel over vertex chunks, so results are bit-identical for any thread count. Buffers
 //! are allocated once per call, never inside the iteration loop.
 
-mod constraints;
+pub mod constraints;
 mod hc;
 mod laplace;
-mod mcf;
+pub mod mcf;
 
 pub use constraints::cell_edge_axes;
 
@@ -23,7 +23,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 /// Vertices per parallel task in the smoothing kernels (the umbrella operator's).
-pub(crate) const CHUNK: usize = crate::mesh::umbrella::CHUNK;
+pub const CHUNK: usize = crate::mesh::umbrella::CHUNK;
 
 /// A smoother and its parameters.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -341,7 +341,7 @@ pub fn smooth(
 
 /// Per-vertex step scale (the weight; 0 where fixed, isolated, or, for cell-edge, on no grid
 /// edge) and, for cell-edge, each vertex's grid-edge axis.
-fn step_scales(
+pub fn step_scales(
     mesh: &Mesh,
     topology: &Topology,
     method: &Method,
@@ -383,7 +383,7 @@ fn step_scales(
 /// renumbering given with the mesh's adjacency (CSR offsets and neighbours). Returns positions,
 /// iterations run, the last largest step and whether a relaxation converged.
 #[allow(clippy::too_many_arguments)]
-fn run_method(
+pub fn run_method(
     mesh: &Mesh,
     topology: &Topology,
     method: &Method,
@@ -467,7 +467,7 @@ pub fn boundary_vertices(topology: &Topology) -> Vec<bool> {
 }
 
 /// Largest per-vertex distance between two position buffers (mm); order-independent.
-pub(crate) fn max_step<P: Xyz>(a: &[P], b: &[P]) -> f32 {
+pub fn max_step<P: Xyz>(a: &[P], b: &[P]) -> f32 {
     a.par_chunks(CHUNK)
         .zip(b.par_chunks(CHUNK))
         .map(|(x, y)| {
@@ -485,7 +485,7 @@ pub(crate) fn max_step<P: Xyz>(a: &[P], b: &[P]) -> f32 {
 }
 
 /// A position buffer's element: plain or padded (mm).
-pub(crate) trait Xyz: Copy + Sync {
+pub trait Xyz: Copy + Sync {
     fn xyz(self) -> [f32; 3];
 }
 
@@ -568,48 +568,4 @@ pub fn check_result(
         }
     }
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// Renumbering a scattered mesh changes no bit of any result.
-    #[test]
-    fn a_renumbered_run_gives_the_bits_of_a_run_in_file_order() {
-        let case = crate::phantom::big_case(120_000, &Default::default());
-        let grid_mesh = &case.meshes[0].1;
-        let mesh = crate::bench::shuffled(grid_mesh, 5);
-        let topology = Topology::build(&mesh);
-        let (offsets, neighbors) = topology.neighbor_csr();
-        assert!(mesh.n_vertices() > 50_000);
-        assert!(crate::mesh::order::is_scattered(offsets, neighbors));
-        let n = mesh.n_vertices();
-        let weights =
-            VertexWeights::new((0..n).map(|v| (v % 5) as f32 / 4.0).collect(), n).unwrap();
-        let fixed: Vec<bool> = (0..mesh.n_vertices()).map(|v| v % 11 == 0).collect();
-        let voxel = case.info.spacing_mm.map(|x| x as f32);
-        // Curvature flow always runs in the mesh's own numbering.
-        let methods = crate::bench::every_method(voxel);
-        for method in methods
-            .into_iter()
-            .filter(|m| !matches!(m, Method::Mcf { .. }))
-        {
-            let (renumbered, stats) = smooth(&mesh, &topology, &method, 4, &weights, &fixed);
-            let (scale, axes) = step_scales(&mesh, &topology, &method, &weights, &fixed);
-            let (direct, iterations, last, _) = run_method(
-                &mesh,
-                &topology,
-                &method,
-                mesh.positions(),
-                (offsets, neighbors, None),
-                &scale,
-                axes.as_deref(),
-                4,
-            );
-            assert_ne!(direct, mesh.positions(), "{method:?} moved nothing");
-            assert!(renumbered == direct, "{method:?}");
-            assert_eq!((stats.iterations, stats.last_max_step), (iterations, last));
-        }
-    }
 }

