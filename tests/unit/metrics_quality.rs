@@ -1,8 +1,7 @@
 //! Tests of `src/metrics/quality.rs`.
 
-pub use destair::mesh::Mesh;
 mod tests {
-    use super::*;
+    use destair::mesh::Mesh;
     use destair::metrics::quality::*;
 
     #[test]
@@ -24,7 +23,7 @@ mod tests {
 }
 
 mod shape_tests {
-    use super::*;
+    use destair::mesh::Mesh;
     use destair::metrics::quality::*;
 
     #[test]
