@@ -145,115 +145,130 @@ fn pages_render_in_headless_chromium_with_their_pictures() {
 
 #[test]
 fn vtp_outputs_open_in_vtk_with_every_array() {
-    let probe = Command::new("python3").args(["-c", "import vtk"]).output();
-    if !probe.is_ok_and(|o| o.status.success()) {
+    let t = tempfile::tempdir().unwrap();
+    let out = run_cohort(t.path());
+    // One Python process reads every file (importing VTK takes about a second); it prints
+    // `no-vtk` when VTK's Python package is not installed, and one JSON line per file otherwise.
+    let script = r#"
+import sys, json
+try:
+    import vtk
+except ImportError:
+    print("no-vtk")
+    sys.exit(0)
+for path in sys.argv[1:]:
+    r = vtk.vtkXMLPolyDataReader()
+    r.SetFileName(path)
+    r.Update()
+    if r.GetErrorCode():
+        sys.exit("read error: " + path)
+    m = r.GetOutput()
+    pd = m.GetPointData()
+    arrays = {}
+    for i in range(pd.GetNumberOfArrays()):
+        a = pd.GetArray(i)
+        v = [a.GetValue(k) for k in range(a.GetNumberOfTuples())]
+        arrays[a.GetName()] = [len(v), sum(v), min(v), max(v)]
+    pts = m.GetPoints()
+    s = [sum(pts.GetPoint(k)[c] for k in range(m.GetNumberOfPoints())) for c in range(3)]
+    space = m.GetFieldData().GetAbstractArray("SPACE")
+    print(json.dumps({"points": m.GetNumberOfPoints(), "polys": m.GetNumberOfPolys(),
+      "cells": m.GetNumberOfCells(), "arrays": arrays, "sum": s,
+      "active": pd.GetScalars().GetName() if pd.GetScalars() else None,
+      "space": space.GetValue(0) if space else None}))
+"#;
+    let files: Vec<(&str, &str)> = ["case-000", "case-001"]
+        .into_iter()
+        .flat_map(|case| ["tumor", "vein"].map(|s| (case, s)))
+        .collect();
+    let run = Command::new("python3")
+        .args(["-c", script])
+        .args(
+            files
+                .iter()
+                .map(|(case, s)| out.join(case).join(format!("{s}.vtp"))),
+        )
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    if stdout.trim() == "no-vtk" {
         eprintln!("skipped: VTK's Python package is not installed");
         return;
     }
-    let t = tempfile::tempdir().unwrap();
-    let out = run_cohort(t.path());
-    let script = r#"
-import sys, json, vtk
-r = vtk.vtkXMLPolyDataReader()
-r.SetFileName(sys.argv[1])
-r.Update()
-if r.GetErrorCode():
-    sys.exit("read error")
-m = r.GetOutput()
-pd = m.GetPointData()
-arrays = {}
-for i in range(pd.GetNumberOfArrays()):
-    a = pd.GetArray(i)
-    v = [a.GetValue(k) for k in range(a.GetNumberOfTuples())]
-    arrays[a.GetName()] = [len(v), sum(v), min(v), max(v)]
-pts = m.GetPoints()
-s = [sum(pts.GetPoint(k)[c] for k in range(m.GetNumberOfPoints())) for c in range(3)]
-space = m.GetFieldData().GetAbstractArray("SPACE")
-print(json.dumps({"points": m.GetNumberOfPoints(), "polys": m.GetNumberOfPolys(),
-  "cells": m.GetNumberOfCells(), "arrays": arrays, "sum": s,
-  "active": pd.GetScalars().GetName() if pd.GetScalars() else None,
-  "space": space.GetValue(0) if space else None}))
-"#;
-    for case in ["case-000", "case-001"] {
-        for s in ["tumor", "vein"] {
-            let vtp = out.join(case).join(format!("{s}.vtp"));
-            let run = Command::new("python3")
-                .args(["-c", script])
-                .arg(&vtp)
-                .output()
-                .unwrap();
+    let lines: Vec<&str> = stdout.lines().collect();
+    assert_eq!(lines.len(), files.len(), "{stdout}");
+    for (&(case, s), line) in files.iter().zip(lines) {
+        let got: serde_json::Value = serde_json::from_str(line).unwrap();
+        // The annotated PLY of the same run holds the same surface and arrays.
+        let ply = destair::io::read_mesh(
+            &out.join(case).join(format!("{s}.ply")),
+            &destair::io::ReadOptions {
+                keep_vertex_properties: true,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let n = ply.mesh.n_vertices();
+        assert_eq!(got["points"], n);
+        assert_eq!(got["polys"], ply.mesh.n_triangles());
+        assert_eq!(got["cells"], ply.mesh.n_triangles());
+        assert_eq!(got["active"], "displacement");
+        for c in 0..3 {
+            let want: f64 = ply.mesh.positions().iter().map(|p| p[c] as f64).sum();
+            let have = got["sum"][c].as_f64().unwrap();
             assert!(
-                run.status.success(),
-                "{}",
-                String::from_utf8_lossy(&run.stderr)
+                (want - have).abs() <= 1e-6 * (1.0 + want.abs()),
+                "{want} {have}"
             );
-            let got: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
-            // The annotated PLY of the same run holds the same surface and arrays.
-            let ply = destair::io::read_mesh(
-                &out.join(case).join(format!("{s}.ply")),
-                &destair::io::ReadOptions {
-                    keep_vertex_properties: true,
-                    ..Default::default()
-                },
-            )
-            .unwrap();
-            let n = ply.mesh.n_vertices();
-            assert_eq!(got["points"], n);
-            assert_eq!(got["polys"], ply.mesh.n_triangles());
-            assert_eq!(got["cells"], ply.mesh.n_triangles());
-            assert_eq!(got["active"], "displacement");
-            for c in 0..3 {
-                let want: f64 = ply.mesh.positions().iter().map(|p| p[c] as f64).sum();
-                let have = got["sum"][c].as_f64().unwrap();
-                assert!(
-                    (want - have).abs() <= 1e-6 * (1.0 + want.abs()),
-                    "{want} {have}"
-                );
-            }
-            let arrays = got["arrays"].as_object().unwrap();
-            let names: Vec<&str> = arrays.keys().map(String::as_str).collect();
-            for want in [
-                "weight",
-                "staircase",
-                "cap",
-                "staircase_distance",
-                "reference_distance",
-                "displacement",
-            ] {
-                assert!(
-                    names.contains(&want),
-                    "{case}/{s}: {want} missing from {names:?}"
-                );
-                let p = ply
-                    .vertex_properties
-                    .iter()
-                    .find(|p| p.name == want)
-                    .unwrap();
-                let a = &arrays[want];
-                assert_eq!(a[0], n);
-                let sum: f64 = p.values.iter().map(|&x| x as f64).sum();
-                let (lo, hi) = p
-                    .values
-                    .iter()
-                    .fold((f32::MAX, f32::MIN), |(l, h), &x| (l.min(x), h.max(x)));
-                assert!((a[1].as_f64().unwrap() - sum).abs() <= 1e-4 * (1.0 + sum.abs()));
-                assert_eq!(a[2].as_f64().unwrap() as f32, lo);
-                assert_eq!(a[3].as_f64().unwrap() as f32, hi);
-            }
-            // The PLY also carries the displacement as `quality`, which MeshLab shows.
-            let q = ply
-                .vertex_properties
-                .iter()
-                .find(|p| p.name == "quality")
-                .unwrap();
-            let d = ply
-                .vertex_properties
-                .iter()
-                .find(|p| p.name == "displacement")
-                .unwrap();
-            assert_eq!(q.values, d.values);
-            assert_eq!(got["space"], ply.meta.space().unwrap_or("unknown"));
         }
+        let arrays = got["arrays"].as_object().unwrap();
+        let names: Vec<&str> = arrays.keys().map(String::as_str).collect();
+        for want in [
+            "weight",
+            "staircase",
+            "cap",
+            "staircase_distance",
+            "reference_distance",
+            "displacement",
+        ] {
+            assert!(
+                names.contains(&want),
+                "{case}/{s}: {want} missing from {names:?}"
+            );
+            let p = ply
+                .vertex_properties
+                .iter()
+                .find(|p| p.name == want)
+                .unwrap();
+            let a = &arrays[want];
+            assert_eq!(a[0], n);
+            let sum: f64 = p.values.iter().map(|&x| x as f64).sum();
+            let (lo, hi) = p
+                .values
+                .iter()
+                .fold((f32::MAX, f32::MIN), |(l, h), &x| (l.min(x), h.max(x)));
+            assert!((a[1].as_f64().unwrap() - sum).abs() <= 1e-4 * (1.0 + sum.abs()));
+            assert_eq!(a[2].as_f64().unwrap() as f32, lo);
+            assert_eq!(a[3].as_f64().unwrap() as f32, hi);
+        }
+        // The PLY also carries the displacement as `quality`, which MeshLab shows.
+        let q = ply
+            .vertex_properties
+            .iter()
+            .find(|p| p.name == "quality")
+            .unwrap();
+        let d = ply
+            .vertex_properties
+            .iter()
+            .find(|p| p.name == "displacement")
+            .unwrap();
+        assert_eq!(q.values, d.values);
+        assert_eq!(got["space"], ply.meta.space().unwrap_or("unknown"));
     }
 }
 
