@@ -8,8 +8,6 @@ use crate::mesh::geometry::face_normals;
 use crate::mesh::{Mesh, Topology};
 use rayon::prelude::*;
 use serde::Serialize;
-use std::cmp::Ordering;
-use std::collections::BinaryHeap;
 
 /// The orientation-change threshold above which a vertex is a staircase vertex.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -147,24 +145,14 @@ pub fn orientation_change(topology: &Topology, theta: &[f32]) -> Vec<f32> {
         .collect()
 }
 
-/// Heap entry ordered by distance, then vertex, for a deterministic search.
-#[derive(PartialEq)]
-struct Entry(f64, u32);
-impl Eq for Entry {}
-impl PartialOrd for Entry {
-    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
-        Some(self.cmp(other))
-    }
-}
-impl Ord for Entry {
-    fn cmp(&self, other: &Self) -> Ordering {
-        // Reversed: BinaryHeap is a max-heap and the search wants the nearest first.
-        other.0.total_cmp(&self.0).then(other.1.cmp(&self.1))
-    }
-}
-
 /// Shortest distance along mesh edges from any source vertex, searched up to `limit` mm
-/// (multi-source Dijkstra); vertices beyond stay infinite.
+/// (multi-source); vertices beyond stay infinite.
+///
+/// Label-correcting search over distance buckets about one mean edge long (delta-stepping,
+/// sequential): a vertex is expanded again whenever its distance drops, and the search ends
+/// when no edge can shorten a distance. Every such fixed point is the same (the least float sum
+/// along any path, sums rounded step by step as here), so the result is bit for bit the one
+/// Dijkstra's search gives, without a heap (which took most of the time, serial, on large meshes).
 pub fn geodesic_distance(
     mesh: &Mesh,
     topology: &Topology,
@@ -172,31 +160,79 @@ pub fn geodesic_distance(
     limit: f64,
 ) -> Vec<f32> {
     let p = mesh.positions();
-    let mut dist = vec![f64::INFINITY; mesh.n_vertices()];
-    let mut heap = BinaryHeap::new();
+    let n = mesh.n_vertices();
+    let edge = |v: usize, u: usize| {
+        let (pv, pu) = (p[v], p[u]);
+        (0..3)
+            .map(|k| (pu[k] as f64 - pv[k] as f64).powi(2))
+            .sum::<f64>()
+            .sqrt()
+    };
+    let width = mean_first_edge(topology, n, &edge);
+    // Bucket of a distance; the last one takes everything beyond (still correct, only slower).
+    const MAX_BUCKETS: usize = 1 << 16;
+    let bucket_of = |d: f64| ((d / width) as usize).min(MAX_BUCKETS - 1);
+    let mut dist = vec![f64::INFINITY; n];
+    // The distance each vertex was last expanded at: a vertex queued twice at one distance is
+    // expanded once.
+    let mut expanded = vec![f64::NAN; n];
+    let mut buckets: Vec<Vec<u32>> = vec![Vec::new()];
     for (v, _) in sources.iter().enumerate().filter(|(_, &s)| s) {
         dist[v] = 0.0;
-        heap.push(Entry(0.0, v as u32));
+        buckets[0].push(v as u32);
     }
-    while let Some(Entry(d, v)) = heap.pop() {
-        if d > dist[v as usize] {
+    let mut current = 0;
+    let mut queue = Vec::new();
+    while current < buckets.len() {
+        // Expanding may queue vertices in this bucket again: drain it until it stays empty.
+        std::mem::swap(&mut queue, &mut buckets[current]);
+        if queue.is_empty() {
+            current += 1;
             continue;
         }
-        let pv = p[v as usize];
-        for &u in topology.neighbors(v as usize) {
-            let pu = p[u as usize];
-            let len = (0..3)
-                .map(|k| (pu[k] as f64 - pv[k] as f64).powi(2))
-                .sum::<f64>()
-                .sqrt();
-            let nd = d + len;
-            if nd <= limit && nd < dist[u as usize] {
-                dist[u as usize] = nd;
-                heap.push(Entry(nd, u));
+        for &v in &queue {
+            let d = dist[v as usize];
+            // Queued again since, at a shorter distance (in an earlier or this bucket).
+            if bucket_of(d) != current || expanded[v as usize] == d {
+                continue;
+            }
+            expanded[v as usize] = d;
+            for &u in topology.neighbors(v as usize) {
+                let nd = d + edge(v as usize, u as usize);
+                if nd <= limit && nd < dist[u as usize] {
+                    dist[u as usize] = nd;
+                    let b = bucket_of(nd);
+                    if b >= buckets.len() {
+                        buckets.resize_with(b + 1, Vec::new);
+                    }
+                    buckets[b].push(u);
+                }
+            }
+        }
+        queue.clear();
+    }
+    dist.into_iter().map(|d| d as f32).collect()
+}
+
+/// Mean length of the vertices' first edges over a sample of about 4096 vertices (mm), the
+/// search's bucket width; 1 when there is no edge of positive length.
+fn mean_first_edge(topology: &Topology, n: usize, edge: &impl Fn(usize, usize) -> f64) -> f64 {
+    let (mut total, mut count) = (0.0f64, 0usize);
+    for v in (0..n).step_by((n / 4096).max(1)) {
+        if let Some(&u) = topology.neighbors(v).first() {
+            let d = edge(v, u as usize);
+            if d.is_finite() && d > 0.0 {
+                total += d;
+                count += 1;
             }
         }
     }
-    dist.into_iter().map(|d| d as f32).collect()
+    let mean = total / count.max(1) as f64;
+    if mean > 0.0 && mean.is_finite() {
+        mean
+    } else {
+        1.0
+    }
 }
 
 /// Staircase weights for a mesh whose stack axis is `axis` (unit vector).

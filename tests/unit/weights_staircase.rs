@@ -81,3 +81,92 @@ fn auto_tau_is_mean_plus_three_and_a_half_sd_within_its_range() {
     assert_eq!("0.3".parse::<Tau>(), Ok(Tau::Fixed(0.3)));
     assert!("1.5".parse::<Tau>().is_err() && "often".parse::<Tau>().is_err());
 }
+
+/// Dijkstra's search with a binary heap (what `geodesic_distance` did before its bucket
+/// search): the reference the fast search must match bit for bit.
+fn dijkstra(mesh: &Mesh, topology: &Topology, sources: &[bool], limit: f64) -> Vec<f32> {
+    use std::cmp::Reverse;
+    use std::collections::BinaryHeap;
+    let p = mesh.positions();
+    let mut dist = vec![f64::INFINITY; mesh.n_vertices()];
+    let mut heap = BinaryHeap::new();
+    for v in (0..sources.len()).filter(|&v| sources[v]) {
+        dist[v] = 0.0;
+        // Non-negative f64 bits order like the values.
+        heap.push(Reverse((0u64, v as u32)));
+    }
+    while let Some(Reverse((bits, v))) = heap.pop() {
+        let d = f64::from_bits(bits);
+        if d > dist[v as usize] {
+            continue;
+        }
+        let pv = p[v as usize];
+        for &u in topology.neighbors(v as usize) {
+            let pu = p[u as usize];
+            let len = (0..3)
+                .map(|k| (pu[k] as f64 - pv[k] as f64).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            let nd = d + len;
+            if nd <= limit && nd < dist[u as usize] {
+                dist[u as usize] = nd;
+                heap.push(Reverse((nd.to_bits(), u)));
+            }
+        }
+    }
+    dist.into_iter().map(|d| d as f32).collect()
+}
+
+/// The bucket search gives Dijkstra's distances bit for bit: on a marching-cubes blob (many
+/// equal edges, so many ties) and on jittered and stretched copies, with sparse and dense
+/// sources, limits short and long, and no limit (distances far beyond the buckets' range).
+#[test]
+fn geodesic_distance_matches_dijkstra_bit_for_bit() {
+    let blob = destair::phantom::big_case(20_000, &Default::default()).meshes[0]
+        .1
+        .clone();
+    let mut rng = fastrand::Rng::with_seed(5);
+    let jittered: Vec<[f32; 3]> = blob
+        .positions()
+        .iter()
+        .map(|p| p.map(|x| x + 0.3 * (rng.f32() - 0.5)))
+        .collect();
+    // A few edges 1000 times longer than the rest.
+    let stretched: Vec<[f32; 3]> = blob
+        .positions()
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            if i % 97 == 0 {
+                p.map(|x| x * 1000.0)
+            } else {
+                *p
+            }
+        })
+        .collect();
+    let triangles = blob.triangles().to_vec();
+    for positions in [blob.positions().to_vec(), jittered, stretched] {
+        let mesh = Mesh::new(positions, triangles.clone()).unwrap();
+        let topology = Topology::build(&mesh);
+        for share in [0.001, 0.05, 0.5] {
+            let sources: Vec<bool> = (0..mesh.n_vertices()).map(|_| rng.f64() < share).collect();
+            for limit in [0.0, 0.7, 3.0, 40.0, f64::INFINITY] {
+                let fast = geodesic_distance(&mesh, &topology, &sources, limit);
+                let slow = dijkstra(&mesh, &topology, &sources, limit);
+                let reached = fast.iter().filter(|d| d.is_finite()).count();
+                assert!(
+                    fast.iter()
+                        .zip(&slow)
+                        .all(|(a, b)| a.to_bits() == b.to_bits()),
+                    "share {share}, limit {limit}: {reached} reached"
+                );
+            }
+        }
+    }
+    // No sources: nothing is reached.
+    let topology = Topology::build(&blob);
+    let none = vec![false; blob.n_vertices()];
+    assert!(geodesic_distance(&blob, &topology, &none, 3.0)
+        .iter()
+        .all(|d| d.is_infinite()));
+}
