@@ -440,9 +440,16 @@ fn caps_of(
         n_terraces: 0,
     };
     let mut stamp = vec![NONE; mesh.n_vertices()];
+    let mut reached = Reached::new(mesh.n_vertices());
     for (id, faces) in kept.iter().enumerate() {
         let verdict = examine_region(
-            mesh, topology, normals, &region, id as u32, faces, &mut stamp, params,
+            mesh,
+            topology,
+            normals,
+            &region,
+            (id as u32, faces),
+            (&mut stamp, &mut reached),
+            params,
         );
         match verdict {
             Verdict::Cap(candidate) => look.candidates.push(candidate),
@@ -465,16 +472,14 @@ enum Verdict {
 
 /// The checks of [`caps_of`] on one grown region `id` (its `faces`, with `region` the final
 /// face-to-region assignment; `stamp`, one per vertex, is scratch shared by all regions and
-/// never holds `id` before).
-#[allow(clippy::too_many_arguments)]
+/// never holds `id` before; `reached` is the outward search's scratch).
 fn examine_region(
     mesh: &Mesh,
     topology: &Topology,
     normals: &[[f32; 3]],
     region: &[u32],
-    id: u32,
-    faces: &[u32],
-    stamp: &mut [u32],
+    (id, faces): (u32, &[u32]),
+    (stamp, reached): (&mut [u32], &mut Reached),
     params: &CapParams,
 ) -> Verdict {
     let (tris, p) = (mesh.triangles(), mesh.positions());
@@ -555,9 +560,8 @@ fn examine_region(
         normals,
         &border,
         in_region,
-        normal,
-        params.turn_reach * width,
-        params.turn_deg,
+        (normal, params.turn_reach * width, params.turn_deg),
+        reached,
     );
     if (turned as f32) < params.min_turning_border * border.len() as f32 {
         return Verdict::Other;
@@ -575,32 +579,61 @@ fn examine_region(
     })
 }
 
+/// Distances of the outward search from a region's border (mm; infinite where not reached),
+/// one per vertex of the mesh and kept between regions: a search resets what it reached, so
+/// no region pays for clearing or hashing the whole mesh.
+struct Reached {
+    distance: Vec<f32>,
+    touched: Vec<u32>,
+}
+
+impl Reached {
+    fn new(n_vertices: usize) -> Self {
+        Self {
+            distance: vec![f32::INFINITY; n_vertices],
+            touched: Vec::new(),
+        }
+    }
+
+    fn set(&mut self, v: u32, d: f32) {
+        if self.distance[v as usize] == f32::INFINITY {
+            self.touched.push(v);
+        }
+        self.distance[v as usize] = d;
+    }
+
+    fn clear(&mut self) {
+        for &v in &self.touched {
+            self.distance[v as usize] = f32::INFINITY;
+        }
+        self.touched.clear();
+    }
+}
+
 /// Number of border vertices from which the surface, followed outwards (outside the region)
 /// up to `reach` mm, reaches a face whose normal is at least `turn_deg` from `normal`.
-#[allow(clippy::too_many_arguments)]
 fn turning_border(
     mesh: &Mesh,
     topology: &Topology,
     face_normals: &[[f32; 3]],
     border: &[u32],
     in_region: impl Fn(u32) -> bool,
-    normal: [f32; 3],
-    reach: f32,
-    turn_deg: f32,
+    (normal, reach, turn_deg): ([f32; 3], f32, f32),
+    best: &mut Reached,
 ) -> usize {
-    use std::collections::{BinaryHeap, HashMap};
+    use std::collections::BinaryHeap;
     let p = mesh.positions();
-    // Multi-source search from the border; each reached vertex remembers its source.
-    let mut best: HashMap<u32, (f32, usize)> = HashMap::new();
+    // Multi-source search from the border; each queued vertex carries its source.
+    best.clear();
     let mut heap = BinaryHeap::new();
     for (i, &v) in border.iter().enumerate() {
-        best.insert(v, (0.0, i));
+        best.set(v, 0.0);
         heap.push(std::cmp::Reverse((0u32, v, i)));
     }
     let mut turned = vec![false; border.len()];
     while let Some(std::cmp::Reverse((d_bits, v, source))) = heap.pop() {
         let d = f32::from_bits(d_bits);
-        if best.get(&v).is_some_and(|&(b, _)| b < d) {
+        if best.distance[v as usize] < d {
             continue;
         }
         for &f in topology.vertex_faces(v as usize) {
@@ -616,8 +649,8 @@ fn turning_border(
             }
             let pu = p[u as usize];
             let nd = d + (0..3).map(|k| (pu[k] - pv[k]).powi(2)).sum::<f32>().sqrt();
-            if nd <= reach && best.get(&u).is_none_or(|&(b, _)| nd < b) {
-                best.insert(u, (nd, source));
+            if nd <= reach && nd < best.distance[u as usize] {
+                best.set(u, nd);
                 // Non-negative f32 bits order like the values.
                 heap.push(std::cmp::Reverse((nd.to_bits(), u, source)));
             }
