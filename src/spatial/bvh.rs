@@ -9,7 +9,7 @@
 //! (subtrees in parallel), nodes depth first, at most four triangles per leaf, with the
 //! leaves' corners copied in leaf order.
 
-use super::{dot, point_triangle_distance, point_triangle_distance2, sub, triangle_box};
+use super::{dot, max, point_triangle_distance, point_triangle_distance2, sub, triangle_box};
 use crate::mesh::Mesh;
 use rayon::prelude::*;
 
@@ -223,7 +223,7 @@ fn box_distances2(q: [f32; 3], lo: &[[f32; 4]; 3], hi: &[[f32; 4]; 3]) -> [f32; 
     let mut sum = [0.0f32; 4];
     for a in 0..3 {
         for k in 0..4 {
-            let d = (lo[a][k] - q[a]).max(q[a] - hi[a][k]).max(0.0);
+            let d = max(max(lo[a][k] - q[a], q[a] - hi[a][k]), 0.0);
             sum[k] += d * d;
         }
     }
@@ -235,7 +235,7 @@ fn box_distances2(q: [f32; 3], lo: &[[f32; 4]; 3], hi: &[[f32; 4]; 3]) -> [f32; 
 fn box_distance2(q: [f32; 3], lo: [f32; 3], hi: [f32; 3]) -> f32 {
     let mut sum = 0.0f32;
     for a in 0..3 {
-        let d = (lo[a] - q[a]).max(q[a] - hi[a]).max(0.0);
+        let d = max(max(lo[a] - q[a], q[a] - hi[a]), 0.0);
         sum += d * d;
     }
     sum

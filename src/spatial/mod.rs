@@ -121,9 +121,31 @@ pub fn closest_point_and_region(p: V3, a: V3, b: V3, c: V3) -> (V3, TriangleRegi
 /// Box of a triangle's corners (mm): its lowest and highest coordinate on each axis.
 #[inline]
 pub fn triangle_box(t: &[[f32; 3]; 3]) -> ([f32; 3], [f32; 3]) {
-    let lo = std::array::from_fn(|a| t[0][a].min(t[1][a]).min(t[2][a]));
-    let hi = std::array::from_fn(|a| t[0][a].max(t[1][a]).max(t[2][a]));
+    let lo = std::array::from_fn(|a| min(min(t[0][a], t[1][a]), t[2][a]));
+    let hi = std::array::from_fn(|a| max(max(t[0][a], t[1][a]), t[2][a]));
     (lo, hi)
+}
+
+/// The larger of `a` and `b` as one compare-and-select (`maxss`), where `f32::max`'s care for
+/// NaN costs several instructions in the search's innermost loops; `b` when either is NaN
+/// (coordinates here are finite).
+#[inline(always)]
+pub fn max(a: f32, b: f32) -> f32 {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
+
+/// The smaller of `a` and `b`, as [`max`] does it.
+#[inline(always)]
+pub fn min(a: f32, b: f32) -> f32 {
+    if a < b {
+        a
+    } else {
+        b
+    }
 }
 
 /// Distance (mm) from p to triangle (a, b, c).
