@@ -168,7 +168,8 @@ pub fn geodesic_distance(
             .sum::<f64>()
             .sqrt()
     };
-    let width = mean_first_edge(topology, n, &edge);
+    let (offsets, neighbors) = topology.neighbor_csr();
+    let width = crate::mesh::order::sampled_mean_edge(p, offsets, neighbors);
     // Bucket of a distance; the last one takes everything beyond (still correct, only slower).
     const MAX_BUCKETS: usize = 1 << 16;
     let bucket_of = |d: f64| ((d / width) as usize).min(MAX_BUCKETS - 1);
@@ -212,27 +213,6 @@ pub fn geodesic_distance(
         queue.clear();
     }
     dist.into_iter().map(|d| d as f32).collect()
-}
-
-/// Mean length of the vertices' first edges over a sample of about 4096 vertices (mm), the
-/// search's bucket width; 1 when there is no edge of positive length.
-fn mean_first_edge(topology: &Topology, n: usize, edge: &impl Fn(usize, usize) -> f64) -> f64 {
-    let (mut total, mut count) = (0.0f64, 0usize);
-    for v in (0..n).step_by((n / 4096).max(1)) {
-        if let Some(&u) = topology.neighbors(v).first() {
-            let d = edge(v, u as usize);
-            if d.is_finite() && d > 0.0 {
-                total += d;
-                count += 1;
-            }
-        }
-    }
-    let mean = total / count.max(1) as f64;
-    if mean > 0.0 && mean.is_finite() {
-        mean
-    } else {
-        1.0
-    }
 }
 
 /// Staircase weights for a mesh whose stack axis is `axis` (unit vector).
