@@ -432,25 +432,41 @@ fn caps_of(
         }
     }
     // A grown region's verdict depends only on its faces and the final assignment (a face
-    // goes to the first region that reaches it), so all regions are grown first; each is then
-    // examined with its large steps in parallel.
+    // goes to the first region that reaches it), so all regions are grown first, then examined
+    // side by side (a large one with its large steps in parallel too) and counted in order.
+    let scratch_pool = std::sync::Mutex::new(Vec::new());
+    let verdicts: Vec<Verdict> = kept
+        .par_iter()
+        .enumerate()
+        .map(|(id, faces)| {
+            let taken = scratch_pool.lock().map(|mut pool| pool.pop());
+            let (mut stamp, mut reached) = taken.ok().flatten().unwrap_or_else(|| {
+                (
+                    vec![NONE; mesh.n_vertices()],
+                    Reached::new(mesh.n_vertices()),
+                )
+            });
+            let verdict = examine_region(
+                mesh,
+                topology,
+                normals,
+                &region,
+                (id as u32, faces),
+                (&mut stamp, &mut reached),
+                params,
+            );
+            if let Ok(mut pool) = scratch_pool.lock() {
+                pool.push((stamp, reached));
+            }
+            verdict
+        })
+        .collect();
     let mut look = Look {
         candidates: Vec::new(),
         n_regions: kept.len(),
         n_terraces: 0,
     };
-    let mut stamp = vec![NONE; mesh.n_vertices()];
-    let mut reached = Reached::new(mesh.n_vertices());
-    for (id, faces) in kept.iter().enumerate() {
-        let verdict = examine_region(
-            mesh,
-            topology,
-            normals,
-            &region,
-            (id as u32, faces),
-            (&mut stamp, &mut reached),
-            params,
-        );
+    for verdict in verdicts {
         match verdict {
             Verdict::Cap(candidate) => look.candidates.push(candidate),
             Verdict::Terrace => look.n_terraces += 1,
@@ -471,7 +487,7 @@ enum Verdict {
 }
 
 /// The checks of [`caps_of`] on one grown region `id` (its `faces`, with `region` the final
-/// face-to-region assignment; `stamp`, one per vertex, is scratch shared by all regions and
+/// face-to-region assignment; `stamp`, one per vertex, is scratch passed between regions and
 /// never holds `id` before; `reached` is the outward search's scratch).
 fn examine_region(
     mesh: &Mesh,

@@ -60,30 +60,93 @@ impl VoxelSizeEstimate {
     }
 }
 
+/// Distinct offsets counted per axis beyond which the axis is sorted instead (a mesh off any
+/// grid has about as many distinct offsets as edges).
+const MAX_DISTINCT: usize = 1 << 16;
+
 /// Reconstructs the voxel size (mm per axis) of the grid a marching-cubes mesh came from.
+/// A mesh on a grid has few distinct edge offsets, so they are counted in one pass over the
+/// edges; an axis with too many to count is sorted whole. Both give the same clusters.
 pub fn voxel_size(mesh: &Mesh, topology: &Topology) -> VoxelSizeEstimate {
     let p = mesh.positions();
     let edges = topology.edges();
-    let axes = std::array::from_fn(|k| {
+    let zero_tol: [f64; 3] = std::array::from_fn(|k| {
         let max_abs = p.iter().map(|q| q[k].abs()).fold(0.0f32, f32::max) as f64;
         // Offsets below a few ulps of the largest coordinate are float noise around 0.
-        let zero_tol = 8.0 * f32::EPSILON as f64 * max_abs.max(1e-6);
-        let mut offsets: Vec<f64> = edges
-            .par_iter()
-            .map(|&[a, b]| (p[a as usize][k] as f64 - p[b as usize][k] as f64).abs())
-            .filter(|&d| d > zero_tol)
-            .collect();
-        offsets.par_sort_unstable_by(f64::total_cmp);
-        axis_spacing(&offsets, zero_tol)
+        8.0 * f32::EPSILON as f64 * max_abs.max(1e-6)
+    });
+    let offset =
+        |[a, b]: [u32; 2], k: usize| (p[a as usize][k] as f64 - p[b as usize][k] as f64).abs();
+    let counted = count_offsets(edges, offset, zero_tol);
+    let axes = std::array::from_fn(|k| match &counted[k] {
+        Some(distinct) => clusters_spacing(distinct, zero_tol[k]),
+        None => {
+            let mut offsets: Vec<f64> = edges
+                .par_iter()
+                .map(|&e| offset(e, k))
+                .filter(|&d| d > zero_tol[k])
+                .collect();
+            offsets.par_sort_unstable_by(f64::total_cmp);
+            axis_spacing(&offsets, zero_tol[k])
+        }
     });
     VoxelSizeEstimate { axes }
 }
 
+/// Per axis, the distinct edge offsets above `zero_tol` with how often each occurs, ascending;
+/// `None` for an axis with more than [`MAX_DISTINCT`] of them.
+fn count_offsets(
+    edges: &[[u32; 2]],
+    offset: impl Fn([u32; 2], usize) -> f64 + Sync,
+    zero_tol: [f64; 3],
+) -> [Option<Vec<(f64, usize)>>; 3] {
+    type Counts = [Option<rustc_hash::FxHashMap<u64, usize>>; 3];
+    let fresh = || -> Counts { std::array::from_fn(|_| Some(Default::default())) };
+    let merged = edges
+        .par_chunks(1 << 14)
+        .fold(fresh, |mut counts, chunk| {
+            for (k, slot) in counts.iter_mut().enumerate() {
+                let Some(map) = slot else { continue };
+                for &e in chunk {
+                    let d = offset(e, k);
+                    if d > zero_tol[k] {
+                        *map.entry(d.to_bits()).or_insert(0) += 1;
+                    }
+                }
+                if map.len() > MAX_DISTINCT {
+                    *slot = None;
+                }
+            }
+            counts
+        })
+        .reduce(fresh, |mut a, b| {
+            for (slot, other) in a.iter_mut().zip(b) {
+                *slot = match (slot.take(), other) {
+                    (Some(mut x), Some(y)) => {
+                        for (bits, n) in y {
+                            *x.entry(bits).or_insert(0) += n;
+                        }
+                        (x.len() <= MAX_DISTINCT).then_some(x)
+                    }
+                    _ => None,
+                };
+            }
+            a
+        });
+    merged.map(|slot| {
+        slot.map(|map| {
+            let mut distinct: Vec<(f64, usize)> = map
+                .into_iter()
+                .map(|(bits, n)| (f64::from_bits(bits), n))
+                .collect();
+            distinct.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+            distinct
+        })
+    })
+}
+
 /// Classifies one axis from its sorted non-zero edge offsets.
 pub fn axis_spacing(sorted: &[f64], zero_tol: f64) -> AxisSpacing {
-    if sorted.is_empty() {
-        return AxisSpacing::NoSteps;
-    }
     // Clusters of offsets equal up to float noise: (representative, count).
     let mut clusters: Vec<(f64, usize)> = Vec::new();
     let mut start = 0;
@@ -94,8 +157,42 @@ pub fn axis_spacing(sorted: &[f64], zero_tol: f64) -> AxisSpacing {
             start = i;
         }
     }
+    classify(clusters, sorted.len())
+}
+
+/// [`axis_spacing`] from the distinct offsets (ascending) with their counts: the same clusters,
+/// each represented by its middle offset counted with repeats.
+fn clusters_spacing(distinct: &[(f64, usize)], zero_tol: f64) -> AxisSpacing {
+    let mut clusters: Vec<(f64, usize)> = Vec::new();
+    let mut start = 0;
+    for i in 1..=distinct.len() {
+        let tol = (4.0 * zero_tol).max(1e-4 * distinct[start].0);
+        if i == distinct.len() || distinct[i].0 - distinct[start].0 > tol {
+            let members = &distinct[start..i];
+            let count: usize = members.iter().map(|m| m.1).sum();
+            let mut middle = count / 2;
+            let mut representative = members[0].0;
+            for &(v, n) in members {
+                representative = v;
+                if middle < n {
+                    break;
+                }
+                middle -= n;
+            }
+            clusters.push((representative, count));
+            start = i;
+        }
+    }
+    classify(clusters, distinct.iter().map(|m| m.1).sum())
+}
+
+/// The spacing that clusters of offsets (representative mm, count; `total` offsets) show.
+fn classify(mut clusters: Vec<(f64, usize)>, total: usize) -> AxisSpacing {
+    if clusters.is_empty() {
+        return AxisSpacing::NoSteps;
+    }
     clusters.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.total_cmp(&b.0)));
-    let total = sorted.len() as f64;
+    let total = total as f64;
     let top = clusters[0];
     let second = clusters.get(1).copied().unwrap_or((0.0, 0));
     let explained = (top.1 + second.1) as f64 / total;

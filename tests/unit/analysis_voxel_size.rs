@@ -78,3 +78,85 @@ fn reconstructs_grid_spacing_and_refuses_rotated_grids() {
     let est = voxel_size(&r, &Topology::build(&r));
     assert!(est.spacing().is_none() && est.is_irregular(), "{est:?}");
 }
+
+/// The estimate as the paper's procedure states it: every axis's offsets sorted whole.
+fn sorted_estimate(m: &Mesh, t: &Topology) -> [AxisSpacing; 3] {
+    let p = m.positions();
+    std::array::from_fn(|k| {
+        let max_abs = p.iter().map(|q| q[k].abs()).fold(0.0f32, f32::max) as f64;
+        let zero_tol = 8.0 * f32::EPSILON as f64 * max_abs.max(1e-6);
+        let mut offsets: Vec<f64> = t
+            .edges()
+            .iter()
+            .map(|&[a, b]| (p[a as usize][k] as f64 - p[b as usize][k] as f64).abs())
+            .filter(|&d| d > zero_tol)
+            .collect();
+        offsets.sort_by(f64::total_cmp);
+        axis_spacing(&offsets, zero_tol)
+    })
+}
+
+/// Counting distinct offsets (few on a grid) and sorting them all (an axis with too many to
+/// count) give what sorting every offset gives, to the bit: on grid meshes, on a rotated grid,
+/// on a jittered mesh with an offset per edge, and on one with a single jittered axis.
+#[test]
+fn counted_offsets_match_sorting_them_all() {
+    let grid = destair::phantom::big_case(200_000, &Default::default()).meshes[0]
+        .1
+        .clone();
+    let mut rng = fastrand::Rng::with_seed(7);
+    let mut jittered = grid.clone();
+    for q in jittered.positions_mut() {
+        for x in q.iter_mut() {
+            *x += rng.f32() * 0.3;
+        }
+    }
+    // A slightly scaled grid with noise within a cluster's tolerance: the spacing is the
+    // middle of many distinct offsets.
+    let mut noisy = grid.clone();
+    for q in noisy.positions_mut() {
+        for x in q.iter_mut() {
+            *x = *x * 1.00003 + rng.f32() * 4e-5;
+        }
+    }
+    let mut one_axis = grid.clone();
+    for q in one_axis.positions_mut() {
+        q[1] += rng.f32() * 0.3;
+    }
+    // Distinct y offsets: the grid's few are counted, the jittered meshes' are past the
+    // counting limit (65,536) and sorted.
+    let distinct_y = |m: &Mesh| {
+        let p = m.positions();
+        let t = Topology::build(m);
+        let mut bits: Vec<u64> = t
+            .edges()
+            .iter()
+            .map(|&[a, b]| {
+                (p[a as usize][1] as f64 - p[b as usize][1] as f64)
+                    .abs()
+                    .to_bits()
+            })
+            .collect();
+        bits.sort_unstable();
+        bits.dedup();
+        bits.len()
+    };
+    assert!(distinct_y(&grid) < 1 << 15, "{}", distinct_y(&grid));
+    assert!(distinct_y(&one_axis) > 1 << 17, "{}", distinct_y(&one_axis));
+    let noisy_spacing = voxel_size(&noisy, &Topology::build(&noisy)).spacing();
+    assert!(
+        noisy_spacing.is_some_and(|s| s[0] != 1.0),
+        "{noisy_spacing:?}"
+    );
+    for m in [
+        midpoint_strip(0.0),
+        midpoint_strip(30.0),
+        grid,
+        noisy,
+        jittered,
+        one_axis,
+    ] {
+        let t = Topology::build(&m);
+        assert_eq!(voxel_size(&m, &t).axes, sorted_estimate(&m, &t));
+    }
+}
