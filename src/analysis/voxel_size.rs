@@ -63,6 +63,8 @@ impl VoxelSizeEstimate {
 /// Distinct offsets counted per axis beyond which the axis is sorted instead (a mesh off any
 /// grid has about as many distinct offsets as edges).
 const MAX_DISTINCT: usize = 1 << 16;
+/// Edges sampled to see whether an axis's offsets are few enough to count.
+const SAMPLE: usize = 1 << 15;
 
 /// Reconstructs the voxel size (mm per axis) of the grid a marching-cubes mesh came from.
 /// A mesh on a grid has few distinct edge offsets, so they are counted in one pass over the
@@ -100,8 +102,19 @@ fn count_offsets(
     offset: impl Fn([u32; 2], usize) -> f64 + Sync,
     zero_tol: [f64; 3],
 ) -> [Option<Vec<(f64, usize)>>; 3] {
+    // A strided sample tells a mesh off any grid (nearly every sampled offset distinct) at
+    // once, so it goes straight to sorting without filling maps first.
+    let step = (edges.len() / SAMPLE).max(1);
+    let countable: [bool; 3] = std::array::from_fn(|k| {
+        let mut bits: Vec<u64> = (edges.iter().step_by(step))
+            .map(|&e| offset(e, k).to_bits())
+            .collect();
+        bits.sort_unstable();
+        bits.dedup();
+        bits.len() <= SAMPLE / 2
+    });
     type Counts = [Option<rustc_hash::FxHashMap<u64, usize>>; 3];
-    let fresh = || -> Counts { std::array::from_fn(|_| Some(Default::default())) };
+    let fresh = || -> Counts { countable.map(|c| c.then(Default::default)) };
     let merged = edges
         .par_chunks(1 << 14)
         .fold(fresh, |mut counts, chunk| {
