@@ -68,7 +68,8 @@ const SAMPLE: usize = 1 << 15;
 
 /// Reconstructs the voxel size (mm per axis) of the grid a marching-cubes mesh came from.
 /// A mesh on a grid has few distinct edge offsets, so they are counted in one pass over the
-/// edges; an axis with too many to count is sorted whole. Both give the same clusters.
+/// edges; an axis with too many to count (by a sample, or past 65,536) is sorted
+/// whole. Both give the same clusters.
 pub fn voxel_size(mesh: &Mesh, topology: &Topology) -> VoxelSizeEstimate {
     let p = mesh.positions();
     let edges = topology.edges();

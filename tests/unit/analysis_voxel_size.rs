@@ -123,8 +123,8 @@ fn counted_offsets_match_sorting_them_all() {
     for q in one_axis.positions_mut() {
         q[1] += rng.f32() * 0.3;
     }
-    // Distinct y offsets: the grid's few are counted, the jittered meshes' are past the
-    // counting limit (65,536) and sorted.
+    // Distinct y offsets: the grid's few are counted; the jittered meshes' are nearly all
+    // distinct, so their sample sends them to sorting.
     let distinct_y = |m: &Mesh| {
         let p = m.positions();
         let t = Topology::build(m);
