@@ -9,10 +9,34 @@ use rayon::prelude::*;
 
 /// Normal curvature per vertex in degrees; `None` where the vertex has no incident face with
 /// area or its normal cancels out (unreferenced or degenerate neighbourhoods).
+///
+/// The same values as [`vertex_normal_turn`]'s `deg`, found with one arctangent per vertex:
+/// the widest of a vertex's angles is picked by comparing (cos, sin) pairs, a cross product
+/// whose sign orders angles in [0, 180] degrees, and only its arctangent is taken.
 pub fn vertex_normal_curvature(mesh: &Mesh, topology: &Topology) -> Vec<Option<f32>> {
-    vertex_normal_turn(mesh, topology)
-        .into_iter()
-        .map(|t| t.map(|t| t.deg))
+    let (fnormals, vnormals) = face_and_vertex_normals(mesh, topology);
+    (0..mesh.n_vertices())
+        .into_par_iter()
+        .map(|v| {
+            let n = vnormals[v];
+            if n == [0.0; 3] {
+                return None;
+            }
+            let mut widest: Option<(f64, f64)> = None;
+            for &f in topology.vertex_faces(v) {
+                let m = fnormals[f as usize];
+                if m == [0.0; 3] {
+                    continue;
+                }
+                let (sin, cos) = sin_cos_between(n, m);
+                // Both sines are >= 0: the angle of (cos, sin) is wider when the cross
+                // product with the widest so far is positive.
+                if widest.is_none_or(|(s, c)| sin * c - cos * s > 0.0) {
+                    widest = Some((sin, cos));
+                }
+            }
+            widest.map(|(sin, cos)| sin.atan2(cos).to_degrees() as f32)
+        })
         .collect()
 }
 

@@ -61,3 +61,39 @@ fn turns_within_limits_agree_with_the_turn_values() {
     // Both answers occur often.
     assert!(both[0] > 10_000 && both[1] > 10_000, "{both:?}");
 }
+
+/// The one-arctangent path gives `vertex_normal_turn`'s angles on a jittered phantom, with
+/// degenerate faces and folds past 90 degrees mixed in.
+#[test]
+fn curvature_matches_the_turn_angles() {
+    let case = destair::phantom::big_case(20_000, &Default::default());
+    let mut mesh = case.meshes[0].1.clone();
+    let mut rng = fastrand::Rng::with_seed(9);
+    let n = mesh.n_vertices();
+    let tris = mesh.triangles().to_vec();
+    let p = mesh.positions_mut();
+    for x in p.iter_mut().flatten() {
+        *x += (rng.f32() - 0.5) * 0.3;
+    }
+    for _ in 0..200 {
+        // A corner pulled onto another (a degenerate face) or far through the surface (a fold).
+        let [a, b, _] = tris[rng.usize(..tris.len())];
+        if rng.bool() {
+            p[a as usize] = p[b as usize];
+        } else {
+            for x in p[a as usize].iter_mut() {
+                *x += (rng.f32() - 0.5) * 20.0;
+            }
+        }
+    }
+    let topology = Topology::build(&mesh);
+    let fast = vertex_normal_curvature(&mesh, &topology);
+    let turn = vertex_normal_turn(&mesh, &topology);
+    assert_eq!(fast.len(), n);
+    let mut wide = 0;
+    for (v, (f, t)) in fast.iter().zip(&turn).enumerate() {
+        assert_eq!(*f, t.map(|t| t.deg), "vertex {v}");
+        wide += usize::from(f.is_some_and(|d| d > 90.0));
+    }
+    assert!(wide > 20, "{wide} vertices turn past 90 degrees");
+}
