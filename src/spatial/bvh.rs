@@ -287,14 +287,19 @@ impl TriangleBvh {
             .par_iter()
             .map(|t| t.map(|v| p[v as usize]))
             .collect();
-        TriangleBvh::from_triangles(&triangles)
+        TriangleBvh::from_corners(triangles)
     }
 
     /// Indexes triangles given by their corners (mm); indices are positions in the slice.
     pub fn from_triangles(triangles: &[[[f32; 3]; 3]]) -> TriangleBvh {
+        TriangleBvh::from_corners(triangles.to_vec())
+    }
+
+    /// [`TriangleBvh::from_triangles`] keeping the corners it is given (no copy).
+    fn from_corners(triangles: Vec<[[f32; 3]; 3]>) -> TriangleBvh {
         TriangleBvh {
-            triangles: triangles.to_vec(),
-            cells: super::cells::TriangleCells::build(triangles),
+            cells: super::cells::TriangleCells::build(&triangles),
+            triangles,
             tree: std::sync::OnceLock::new(),
         }
     }

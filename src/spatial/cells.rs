@@ -86,21 +86,7 @@ impl TriangleCells {
                 }
             }
         };
-        let mut offsets = vec![0u32; n_cells + 1];
-        for t in triangles {
-            for_each_cell(t, &mut |c| offsets[c + 1] += 1);
-        }
-        for i in 1..offsets.len() {
-            offsets[i] += offsets[i - 1];
-        }
-        let mut cursor = offsets[..n_cells].to_vec();
-        let mut ids = vec![0u32; offsets[n_cells] as usize];
-        for (f, t) in triangles.iter().enumerate() {
-            for_each_cell(t, &mut |c| {
-                ids[cursor[c] as usize] = f as u32;
-                cursor[c] += 1;
-            });
-        }
+        let (offsets, ids) = cell_lists(triangles, n_cells, for_each_cell);
         let scale = (0..3)
             .map(|a| lo[a].abs().max(hi[a].abs()))
             .fold(cell, f64::max);
@@ -193,6 +179,104 @@ impl TriangleCells {
         }
         walls - self.slack
     }
+}
+
+/// The cells' triangle lists (CSR offsets and ids) of `n_cells` cells, where `for_each_cell`
+/// names the cells a triangle overlaps. Stretches of triangles are counted and filled side by
+/// side, each from its own cursors, so every list holds its triangles in ascending order
+/// whatever the number of threads: the lists a serial pass would make.
+fn cell_lists(
+    triangles: &[[[f32; 3]; 3]],
+    n_cells: usize,
+    for_each_cell: impl Fn(&[[f32; 3]; 3], &mut dyn FnMut(usize)) + Sync,
+) -> (Vec<u32>, Vec<u32>) {
+    use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
+    let stretch = triangles
+        .len()
+        .div_ceil(rayon::current_num_threads().clamp(1, 8))
+        .max(1 << 14);
+    let stretches: Vec<&[[[f32; 3]; 3]]> = triangles.chunks(stretch).collect();
+    // Per stretch, its triangles in each cell.
+    let mut counts: Vec<Vec<u32>> = stretches
+        .par_iter()
+        .map(|part| {
+            let mut count = crate::hugepages::zeroed_vec::<u32>(n_cells);
+            for t in *part {
+                for_each_cell(t, &mut |c| count[c] += 1);
+            }
+            count
+        })
+        .collect();
+    // Offsets, and each stretch's count turned into its first slot in the cell: blocks of
+    // cells in parallel, each from the total of the blocks before it.
+    const BLOCK: usize = 1 << 16;
+    let block_totals: Vec<u32> = (0..n_cells.div_ceil(BLOCK))
+        .into_par_iter()
+        .map(|b| {
+            let cells = b * BLOCK..((b + 1) * BLOCK).min(n_cells);
+            counts
+                .iter()
+                .map(|c| c[cells.clone()].iter().sum::<u32>())
+                .sum()
+        })
+        .collect();
+    let mut block_starts = Vec::with_capacity(block_totals.len());
+    let mut total = 0u32;
+    for t in &block_totals {
+        block_starts.push(total);
+        total += t;
+    }
+    let mut offsets = crate::hugepages::zeroed_vec::<u32>(n_cells + 1);
+    offsets[n_cells] = total;
+    // Per block: its first slot, its offsets and each stretch's counts there.
+    type Block<'a> = (u32, &'a mut [u32], Vec<&'a mut [u32]>);
+    let mut blocks: Vec<Block> = offsets[..n_cells]
+        .chunks_mut(BLOCK)
+        .zip(&block_starts)
+        .map(|(o, &start)| (start, o, Vec::with_capacity(counts.len())))
+        .collect();
+    for count in counts.iter_mut() {
+        for (block, part) in blocks.iter_mut().zip(count.chunks_mut(BLOCK)) {
+            block.2.push(part);
+        }
+    }
+    blocks
+        .into_par_iter()
+        .for_each(|(start, offsets, mut parts)| {
+            let mut at = start;
+            for (i, o) in offsets.iter_mut().enumerate() {
+                *o = at;
+                for part in parts.iter_mut() {
+                    let n = part[i];
+                    part[i] = at;
+                    at += n;
+                }
+            }
+        });
+    // Huge pages where offered: these buffers are written at scattered places.
+    let mut ids: Vec<AtomicU32> = crate::hugepages::with_capacity(total as usize);
+    (0..total)
+        .into_par_iter()
+        .map(|_| AtomicU32::new(0))
+        .collect_into_vec(&mut ids);
+    stretches
+        .par_iter()
+        .zip(counts.par_iter_mut())
+        .enumerate()
+        .for_each(|(k, (part, cursor))| {
+            for (i, t) in part.iter().enumerate() {
+                let f = (k * stretch + i) as u32;
+                for_each_cell(t, &mut |c| {
+                    ids[cursor[c] as usize].store(f, Relaxed);
+                    cursor[c] += 1;
+                });
+            }
+        });
+    let mut plain = crate::hugepages::with_capacity(ids.len());
+    ids.into_par_iter()
+        .map(AtomicU32::into_inner)
+        .collect_into_vec(&mut plain);
+    (offsets, plain)
 }
 
 /// `listed` (one flag per cell of a grid of `dims`) widened by one cell along every axis in

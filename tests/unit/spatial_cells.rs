@@ -36,3 +36,67 @@ fn near_listed_is_any_listed_cell_of_the_block() {
         assert!(!cells.near_listed([-1e4, 0.0, 0.0]));
     }
 }
+
+/// Every cell lists exactly the triangles whose box overlaps it, in ascending order, for any
+/// number of threads (the lists are counted and filled in stretches side by side).
+#[test]
+fn cells_list_the_overlapping_triangles_in_order_for_any_thread_count() {
+    let mut rng = fastrand::Rng::with_seed(11);
+    let triangles: Vec<[[f32; 3]; 3]> = (0..70_000)
+        .map(|_| {
+            let c: [f32; 3] = std::array::from_fn(|_| rng.f32() * 40.0);
+            let size = if rng.u8(..10) == 0 { 3.0 } else { 0.5 };
+            std::array::from_fn(|_| std::array::from_fn(|a| c[a] + rng.f32() * size))
+        })
+        .collect();
+    let mut first: Option<Vec<Vec<u32>>> = None;
+    for threads in [1, 2, 3, 8] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let cells = pool.install(|| TriangleCells::build(&triangles));
+        let [nx, ny, nz] = cells.dims;
+        // The lists by hand: each triangle's box, cell by cell.
+        let cell_of = |x: f32, a: usize| {
+            (((x as f64 - cells.origin[a]) / cells.cell).floor().max(0.0) as usize)
+                .min(cells.dims[a] - 1)
+        };
+        let mut want = vec![Vec::new(); nx * ny * nz];
+        for (f, t) in triangles.iter().enumerate() {
+            let lo: [usize; 3] =
+                std::array::from_fn(|a| cell_of(t[0][a].min(t[1][a]).min(t[2][a]), a));
+            let hi: [usize; 3] =
+                std::array::from_fn(|a| cell_of(t[0][a].max(t[1][a]).max(t[2][a]), a));
+            for k in lo[2]..=hi[2] {
+                for j in lo[1]..=hi[1] {
+                    for i in lo[0]..=hi[0] {
+                        want[(k * ny + j) * nx + i].push(f as u32);
+                    }
+                }
+            }
+        }
+        let mut got = Vec::with_capacity(want.len());
+        for k in 0..nz {
+            for j in 0..ny {
+                for i in 0..nx {
+                    let p: [f32; 3] = std::array::from_fn(|a| {
+                        (cells.origin[a] + ([i, j, k][a] as f64 + 0.5) * cells.cell) as f32
+                    });
+                    let mut list = Vec::new();
+                    cells.visit_ring(p, 0, |ids, _| list.extend_from_slice(ids));
+                    got.push(list);
+                }
+            }
+        }
+        assert!(
+            got == want,
+            "{threads} threads: lists differ from the boxes'"
+        );
+        assert!(want.iter().filter(|l| l.len() > 1).count() > 1000);
+        match &first {
+            None => first = Some(got),
+            Some(f) => assert!(*f == got, "{threads} threads"),
+        }
+    }
+}
