@@ -20,8 +20,9 @@ pub struct Args {
 
 pub fn exec(args: Args) -> anyhow::Result<()> {
     let read = |p: &PathBuf| read_input(p, &ReadOptions::default());
-    let a = read(&args.original)?;
-    let b = read(&args.smoothed)?;
+    // Both read side by side (each parse has serial stretches); the original's error first.
+    let (a, b) = rayon::join(|| read(&args.original), || read(&args.smoothed));
+    let (a, b) = (a?, b?);
     let refs = args
         .references
         .iter()

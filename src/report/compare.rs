@@ -61,7 +61,7 @@ pub fn compare(
         .zip(&trees)
         .map(|((n, m), g)| (n.as_str(), m, g))
         .collect();
-    compare_prepared(original, &Topology::build(original), smoothed, &refs, voxel)
+    compare_measured(original, None, smoothed, &refs, voxel)
 }
 
 /// [`compare`] reusing what the caller already has: the original's topology (topology depends
@@ -74,54 +74,107 @@ pub fn compare_prepared(
     references: &[(&str, &Mesh, &TriangleBvh)],
     voxel: Option<[f64; 3]>,
 ) -> CompareReport {
+    compare_measured(original, Some(topo_o), smoothed, references, voxel)
+}
+
+/// The measures a report is made of, one pair per mesh.
+struct MeshMeasures {
+    volume_mm3: [f64; 2],
+    loops_closed_by_fans: usize,
+    normal_curvature_deg: [f64; 2],
+    min_triangle_angle_deg: [f64; 2],
+    voxel_size_mm: Option<[f64; 3]>,
+}
+
+/// [`compare_prepared`], building the original's topology when none is given. The distances
+/// (hierarchies and queries) and the measures of each mesh on its own (volume, curvature,
+/// angles, voxel size) run side by side: each has serial stretches the other fills.
+fn compare_measured(
+    original: &Mesh,
+    topo_o: Option<&Topology>,
+    smoothed: &Mesh,
+    references: &[(&str, &Mesh, &TriangleBvh)],
+    voxel: Option<[f64; 3]>,
+) -> CompareReport {
     let same_vertices = original.n_vertices() == smoothed.n_vertices()
         && original.triangles() == smoothed.triangles();
-    let rebuilt;
-    let topo_s = if same_vertices {
-        topo_o
-    } else {
-        rebuilt = Topology::build(smoothed);
-        &rebuilt
-    };
-    let tree_o = TriangleBvh::build(original);
-    let tree_s = TriangleBvh::build(smoothed);
-    let distance = surface_distance(original, &tree_o, smoothed, &tree_s);
-    let vol_o = enclosed_volume(original, topo_o);
-    let vol_s = enclosed_volume(smoothed, topo_s);
+    let ((distance, references), measures) = rayon::join(
+        || {
+            let (tree_o, tree_s) = rayon::join(
+                || TriangleBvh::build(original),
+                || TriangleBvh::build(smoothed),
+            );
+            let distance = surface_distance(original, &tree_o, smoothed, &tree_s);
+            let references: Vec<ReferenceDistance> = references
+                .iter()
+                .map(|&(name, r, tree_r)| {
+                    let before_mm = minimum_distance(original, &tree_o, r, tree_r);
+                    let after_mm = minimum_distance(smoothed, &tree_s, r, tree_r);
+                    ReferenceDistance {
+                        name: name.to_string(),
+                        before_mm,
+                        after_mm,
+                        change_mm: after_mm - before_mm,
+                    }
+                })
+                .collect();
+            (distance, references)
+        },
+        || {
+            let built;
+            let topo_o = match topo_o {
+                Some(t) => t,
+                None => {
+                    built = Topology::build(original);
+                    &built
+                }
+            };
+            let rebuilt;
+            let topo_s = if same_vertices {
+                topo_o
+            } else {
+                rebuilt = Topology::build(smoothed);
+                &rebuilt
+            };
+            let vol_o = enclosed_volume(original, topo_o);
+            let vol_s = enclosed_volume(smoothed, topo_s);
+            MeshMeasures {
+                volume_mm3: [vol_o.mm3, vol_s.mm3],
+                loops_closed_by_fans: vol_o.loops_closed_by_fans.max(vol_s.loops_closed_by_fans),
+                normal_curvature_deg: [
+                    average_normal_curvature(original, topo_o),
+                    average_normal_curvature(smoothed, topo_s),
+                ],
+                min_triangle_angle_deg: [
+                    min_triangle_angle(original),
+                    min_triangle_angle(smoothed),
+                ],
+                voxel_size_mm: voxel.or_else(|| voxel_size(original, topo_o).spacing()),
+            }
+        },
+    );
     let displacement = same_vertices
         .then(|| displacement_stats(&displacements(original.positions(), smoothed.positions())));
-    let voxel_size_mm = voxel.or_else(|| voxel_size(original, topo_o).spacing());
+    let voxel_size_mm = measures.voxel_size_mm;
     let max_d_voxel_diagonals = voxel_size_mm
         .map(|h| distance.hausdorff_mm / (h[0] * h[0] + h[1] * h[1] + h[2] * h[2]).sqrt());
-    let references = references
-        .iter()
-        .map(|&(name, r, tree_r)| {
-            let before_mm = minimum_distance(original, &tree_o, r, tree_r);
-            let after_mm = minimum_distance(smoothed, &tree_s, r, tree_r);
-            ReferenceDistance {
-                name: name.to_string(),
-                before_mm,
-                after_mm,
-                change_mm: after_mm - before_mm,
-            }
-        })
-        .collect();
+    let [vol_o, vol_s] = measures.volume_mm3;
     CompareReport {
         n_vertices_original: original.n_vertices(),
         n_vertices_smoothed: smoothed.n_vertices(),
         distance,
-        volume_original_mm3: vol_o.mm3,
-        volume_smoothed_mm3: vol_s.mm3,
-        volume_percent: if vol_o.mm3 != 0.0 {
-            100.0 * vol_s.mm3 / vol_o.mm3
+        volume_original_mm3: vol_o,
+        volume_smoothed_mm3: vol_s,
+        volume_percent: if vol_o != 0.0 {
+            100.0 * vol_s / vol_o
         } else {
             f64::NAN
         },
-        loops_closed_by_fans: vol_o.loops_closed_by_fans.max(vol_s.loops_closed_by_fans),
-        normal_curvature_original_deg: average_normal_curvature(original, topo_o),
-        normal_curvature_smoothed_deg: average_normal_curvature(smoothed, topo_s),
-        min_triangle_angle_original_deg: min_triangle_angle(original),
-        min_triangle_angle_smoothed_deg: min_triangle_angle(smoothed),
+        loops_closed_by_fans: measures.loops_closed_by_fans,
+        normal_curvature_original_deg: measures.normal_curvature_deg[0],
+        normal_curvature_smoothed_deg: measures.normal_curvature_deg[1],
+        min_triangle_angle_original_deg: measures.min_triangle_angle_deg[0],
+        min_triangle_angle_smoothed_deg: measures.min_triangle_angle_deg[1],
         displacement,
         voxel_size_mm,
         max_d_voxel_diagonals,

@@ -67,26 +67,18 @@ impl TriangleCells {
             );
         let extent: [f64; 3] = std::array::from_fn(|a| (hi[a] - lo[a]).max(0.0));
         let (cell, dims) = super::grid_cells(extent, 2.0 * edge_sum / (3 * n) as f64, n);
-        let cell_of =
-            |x: f64, a: usize| (((x - lo[a]) / cell).floor().max(0.0) as usize).min(dims[a] - 1);
-        let range = |t: &[[f32; 3]; 3]| -> [std::ops::RangeInclusive<usize>; 3] {
+        // A cast truncates as floor does at and above 0 and gives 0 below, as the clamp does.
+        let cell_of = |x: f64, a: usize| (((x - lo[a]) / cell) as usize).min(dims[a] - 1);
+        // The cells a triangle's box overlaps: lowest and highest along each axis.
+        let range = |t: &[[f32; 3]; 3]| -> CellBox {
             let (mn, mx) = super::triangle_box(t);
-            std::array::from_fn(|a| cell_of(mn[a] as f64, a)..=cell_of(mx[a] as f64, a))
+            (
+                std::array::from_fn(|a| cell_of(mn[a] as f64, a)),
+                std::array::from_fn(|a| cell_of(mx[a] as f64, a)),
+            )
         };
-        let linear = |i: usize, j: usize, k: usize| (k * dims[1] + j) * dims[0] + i;
         let n_cells = dims[0] * dims[1] * dims[2];
-        // Every cell a triangle's box overlaps, by linear index.
-        let for_each_cell = |t: &[[f32; 3]; 3], visit: &mut dyn FnMut(usize)| {
-            let [ri, rj, rk] = range(t);
-            for k in rk {
-                for j in rj.clone() {
-                    for i in ri.clone() {
-                        visit(linear(i, j, k));
-                    }
-                }
-            }
-        };
-        let (offsets, ids) = cell_lists(triangles, n_cells, for_each_cell);
+        let (offsets, ids) = cell_lists(triangles, dims, range);
         let scale = (0..3)
             .map(|a| lo[a].abs().max(hi[a].abs()))
             .fold(cell, f64::max);
@@ -123,7 +115,8 @@ impl TriangleCells {
 
     /// The cell index of coordinate `x` along axis `a`, clamped to the grid.
     fn cell_of(&self, x: f64, a: usize) -> usize {
-        (((x - self.origin[a]) / self.cell).floor().max(0.0) as usize).min(self.dims[a] - 1)
+        // Truncation is floor at and above 0; below, both end at cell 0 (NaN too).
+        (((x - self.origin[a]) / self.cell) as usize).min(self.dims[a] - 1)
     }
 
     /// Visits the cells of ring `ring` around the cell of `p` (the nearest cell for a point
@@ -181,16 +174,30 @@ impl TriangleCells {
     }
 }
 
-/// The cells' triangle lists (CSR offsets and ids) of `n_cells` cells, where `for_each_cell`
-/// names the cells a triangle overlaps. Stretches of triangles are counted and filled side by
+/// Lowest and highest cell along each axis of a box of cells.
+type CellBox = ([usize; 3], [usize; 3]);
+
+/// The cells' triangle lists (CSR offsets and ids) of a grid of `dims` cells, where `range`
+/// gives the cells a triangle overlaps. Stretches of triangles are counted and filled side by
 /// side, each from its own cursors, so every list holds its triangles in ascending order
 /// whatever the number of threads: the lists a serial pass would make.
 fn cell_lists(
     triangles: &[[[f32; 3]; 3]],
-    n_cells: usize,
-    for_each_cell: impl Fn(&[[f32; 3]; 3], &mut dyn FnMut(usize)) + Sync,
+    dims: [usize; 3],
+    range: impl Fn(&[[f32; 3]; 3]) -> CellBox + Sync,
 ) -> (Vec<u32>, Vec<u32>) {
     use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
+    let n_cells = dims[0] * dims[1] * dims[2];
+    // Every cell of a box, by linear index.
+    fn each_cell((lo, hi): CellBox, dims: [usize; 3], mut visit: impl FnMut(usize)) {
+        for k in lo[2]..=hi[2] {
+            for j in lo[1]..=hi[1] {
+                for i in lo[0]..=hi[0] {
+                    visit((k * dims[1] + j) * dims[0] + i);
+                }
+            }
+        }
+    }
     let stretch = triangles
         .len()
         .div_ceil(rayon::current_num_threads().clamp(1, 8))
@@ -202,7 +209,7 @@ fn cell_lists(
         .map(|part| {
             let mut count = crate::hugepages::zeroed_vec::<u32>(n_cells);
             for t in *part {
-                for_each_cell(t, &mut |c| count[c] += 1);
+                each_cell(range(t), dims, |c| count[c] += 1);
             }
             count
         })
@@ -266,7 +273,7 @@ fn cell_lists(
         .for_each(|(k, (part, cursor))| {
             for (i, t) in part.iter().enumerate() {
                 let f = (k * stretch + i) as u32;
-                for_each_cell(t, &mut |c| {
+                each_cell(range(t), dims, |c| {
                     ids[cursor[c] as usize].store(f, Relaxed);
                     cursor[c] += 1;
                 });
