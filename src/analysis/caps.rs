@@ -244,11 +244,22 @@ struct Candidate {
 
 /// [`CapCandidates`] of a mesh: both looks, side by side.
 pub fn cap_candidates(mesh: &Mesh, topology: &Topology, params: &CapParams) -> CapCandidates {
+    cap_candidates_with(&TurnLimits::new(mesh, topology), topology, params)
+}
+
+/// [`cap_candidates`] of the mesh whose normals `turns` holds (computed once for every
+/// analysis of the mesh); `topology` is the mesh's.
+pub fn cap_candidates_with(
+    turns: &TurnLimits,
+    topology: &Topology,
+    params: &CapParams,
+) -> CapCandidates {
+    let mesh = turns.mesh();
     let adjacency = FaceNeighbours::build(mesh, topology);
     // The two looks are independent and mostly serial (flood fills, growth): they run side by
     // side, and their results are merged in the same order as ever.
     let (plain, smoothed) = rayon::join(
-        || caps_of(mesh, topology, &adjacency, params, f32::INFINITY),
+        || caps_of(turns, topology, &adjacency, params, f32::INFINITY),
         || {
             (params.smoothed_copy_iterations > 0).then(|| {
                 let copy = Mesh::from_checked_parts(
@@ -256,7 +267,7 @@ pub fn cap_candidates(mesh: &Mesh, topology: &Topology, params: &CapParams) -> C
                     mesh.triangles().to_vec(),
                 );
                 caps_of(
-                    &copy,
+                    &TurnLimits::new(&copy, topology),
                     topology,
                     &adjacency,
                     params,
@@ -348,20 +359,20 @@ fn low_pass(mesh: &Mesh, topology: &Topology, iterations: usize) -> Vec<[f32; 3]
     unpadded(&a)
 }
 
-/// Caps of the mesh as it is (Algorithm 3.1 with the checks above); flat faces turn by at most
-/// `flat_deg_per_mm` too.
+/// Caps of the mesh whose normals `turns` holds, as it is (Algorithm 3.1 with the checks
+/// above); flat faces turn by at most `flat_deg_per_mm` too.
 fn caps_of(
-    mesh: &Mesh,
+    turns: &TurnLimits,
     topology: &Topology,
     adjacency: &FaceNeighbours,
     params: &CapParams,
     flat_deg_per_mm: f32,
 ) -> Look {
+    let mesh = turns.mesh();
     let n_faces = mesh.n_triangles();
     let tris = mesh.triangles();
-    let turn_limits = TurnLimits::new(mesh, topology);
-    let flat_vertex = turn_limits.within(params.flat_deg, flat_deg_per_mm);
-    let normals = &turn_limits.into_face_normals();
+    let flat_vertex = turns.within(params.flat_deg, flat_deg_per_mm);
+    let normals = turns.face_normals();
     let degenerate = |f: usize| normals[f] == [0.0; 3];
     let flat: Vec<bool> = (0..n_faces)
         .map(|f| !degenerate(f) && tris[f].iter().all(|&v| flat_vertex[v as usize]))

@@ -114,10 +114,15 @@ fn canonical(a: [f64; 3]) -> [f64; 3] {
 
 /// Estimates the stack axis of a mesh from its face normals.
 pub fn stack_axis(mesh: &Mesh, topology: &Topology, params: &StackAxisParams) -> StackAxis {
-    let turns = TurnLimits::new(mesh, topology);
+    stack_axis_with(&TurnLimits::new(mesh, topology), params)
+}
+
+/// [`stack_axis`] of the mesh whose normals `turns` holds (computed once for every analysis
+/// of the mesh).
+pub fn stack_axis_with(turns: &TurnLimits, params: &StackAxisParams) -> StackAxis {
+    let mesh = turns.mesh();
     let flat = turns.within(params.flat_deg, params.flat_deg_per_mm);
     let support = turns.within(params.support_flat_deg, f32::INFINITY);
-    drop(turns);
     let candidate = |v: u32| flat[v as usize];
     let supporting = |v: u32| support[v as usize];
     // Evidence is the area of flat faces, not a face count: slivers (which marching cubes makes

@@ -107,11 +107,16 @@ impl<'a> TurnLimits<'a> {
     }
 
     /// The unit face normals (zero for triangles without area), as [`face_normals`] gives
-    /// them, for a caller that needs them after its last [`TurnLimits::within`].
+    /// them to the bit: computed once for every analysis of the same mesh.
     ///
     /// [`face_normals`]: crate::mesh::geometry::face_normals
-    pub fn into_face_normals(self) -> Vec<[f32; 3]> {
-        self.fnormals
+    pub fn face_normals(&self) -> &[[f32; 3]] {
+        &self.fnormals
+    }
+
+    /// The mesh the normals are of.
+    pub fn mesh(&self) -> &'a Mesh {
+        self.mesh
     }
 
     /// Per vertex: whether its normal curvature is at most `max_deg` and its turn per mm at

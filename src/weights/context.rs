@@ -2,15 +2,16 @@
 //! preserved or smoothed, and distance weights from reference structures, combined into one
 //! weight per vertex (Moench 2010, 2012; Moench et al. 2010).
 
+use super::staircase::staircase_weights_with;
 use super::{
-    distance_weights, staircase_weights, Combine, DistanceScaling, StaircaseParams,
-    StaircaseWeights, VertexWeights,
+    distance_weights, Combine, DistanceScaling, StaircaseParams, StaircaseWeights, VertexWeights,
 };
 use crate::analysis::{
-    cap_candidates, stack_axis, CapDetection, CapParams, StackAxis, StackAxisParams,
+    cap_candidates_with, stack_axis_with, CapDetection, CapParams, StackAxis, StackAxisParams,
 };
 use crate::mesh::order::{is_scattered, scanline, Renumbering};
 use crate::mesh::{Mesh, Topology};
+use crate::metrics::normal_curvature::TurnLimits;
 use crate::spatial::TriangleBvh;
 use serde::{Deserialize, Serialize};
 
@@ -161,6 +162,8 @@ pub fn context_in_mesh_order(
     references: &[&TriangleBvh],
 ) -> Context {
     let n = mesh.n_vertices();
+    // Face and vertex normals once, for the stack axis, the staircases and the caps.
+    let turns = TurnLimits::new(mesh, topology);
     // Cap candidates need nothing from the staircases but their reach, applied at the end:
     // the search (flood fills and growth, partly serial) runs beside the staircase analysis.
     let ((estimated_axis, axis, staircase), candidates) = rayon::join(
@@ -177,16 +180,18 @@ pub fn context_in_mesh_order(
                         )
                     }
                     AxisChoice::Auto => {
-                        let est = stack_axis(mesh, topology, &StackAxisParams::default());
+                        let est = stack_axis_with(&turns, &StackAxisParams::default());
                         (Some(est), est.axis().map(|a| a.map(|x| x as f32)))
                     }
                 }
             };
-            let staircase =
-                axis.map(|a| staircase_weights(mesh, topology, a, &params.staircase_params));
+            let staircase = axis.map(|a| {
+                let normals = turns.face_normals();
+                staircase_weights_with(mesh, topology, normals, a, &params.staircase_params)
+            });
             (estimated_axis, axis, staircase)
         },
-        || cap_candidates(mesh, topology, &params.cap_params),
+        || cap_candidates_with(&turns, topology, &params.cap_params),
     );
     let reach: Option<Vec<bool>> = staircase
         .as_ref()

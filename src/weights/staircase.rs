@@ -119,7 +119,12 @@ impl StaircaseWeights {
 /// Face orientation theta_f = 1 - |n_f . axis|: 1 for walls along the axis, 0 for terraces
 /// across it; degenerate faces get 1 - 0 = 1 but are excluded from every vertex by topology.
 pub fn face_orientation(mesh: &Mesh, axis: [f32; 3]) -> Vec<f32> {
-    face_normals(mesh)
+    orientation_of(&face_normals(mesh), axis)
+}
+
+/// [`face_orientation`] from the unit face normals.
+fn orientation_of(face_normals: &[[f32; 3]], axis: [f32; 3]) -> Vec<f32> {
+    face_normals
         .par_iter()
         .map(|n| 1.0 - (n[0] * axis[0] + n[1] * axis[1] + n[2] * axis[2]).abs())
         .collect()
@@ -222,7 +227,19 @@ pub fn staircase_weights(
     axis: [f32; 3],
     params: &StaircaseParams,
 ) -> StaircaseWeights {
-    let theta = face_orientation(mesh, axis);
+    staircase_weights_with(mesh, topology, &face_normals(mesh), axis, params)
+}
+
+/// [`staircase_weights`] from the mesh's unit face normals ([`face_normals`], computed once for
+/// every analysis of the mesh).
+pub fn staircase_weights_with(
+    mesh: &Mesh,
+    topology: &Topology,
+    face_normals: &[[f32; 3]],
+    axis: [f32; 3],
+    params: &StaircaseParams,
+) -> StaircaseWeights {
+    let theta = orientation_of(face_normals, axis);
     let change = orientation_change(topology, &theta);
     let tau = match params.tau {
         Tau::Fixed(t) => t,
