@@ -14,6 +14,31 @@ use rayon::prelude::*;
 /// the widest of a vertex's angles is picked by comparing (cos, sin) pairs, a cross product
 /// whose sign orders angles in [0, 180] degrees, and only its arctangent is taken.
 pub fn vertex_normal_curvature(mesh: &Mesh, topology: &Topology) -> Vec<Option<f32>> {
+    fold_face_angles(
+        mesh,
+        topology,
+        |widest: Option<(f64, f64)>, _, _, sin, cos| {
+            // Both sines are >= 0: the angle of (cos, sin) is wider when the cross product with
+            // the widest so far is positive.
+            match widest {
+                Some((s, c)) if sin * c - cos * s <= 0.0 => widest,
+                _ => Some((sin, cos)),
+            }
+        },
+    )
+    .into_par_iter()
+    .map(|widest| widest.map(|(sin, cos)| sin.atan2(cos).to_degrees() as f32))
+    .collect()
+}
+
+/// Per vertex with a normal, `fold` over its incident faces with area, in order: the vertex,
+/// the face and the sine and cosine of the angle between the two normals. `None` where the vertex normal
+/// cancels out or no face has area.
+fn fold_face_angles<T: Send>(
+    mesh: &Mesh,
+    topology: &Topology,
+    fold: impl Fn(Option<T>, usize, u32, f64, f64) -> Option<T> + Sync,
+) -> Vec<Option<T>> {
     let (fnormals, vnormals) = face_and_vertex_normals(mesh, topology);
     (0..mesh.n_vertices())
         .into_par_iter()
@@ -22,20 +47,15 @@ pub fn vertex_normal_curvature(mesh: &Mesh, topology: &Topology) -> Vec<Option<f
             if n == [0.0; 3] {
                 return None;
             }
-            let mut widest: Option<(f64, f64)> = None;
+            let mut acc = None;
             for &f in topology.vertex_faces(v) {
                 let m = fnormals[f as usize];
-                if m == [0.0; 3] {
-                    continue;
-                }
-                let (sin, cos) = sin_cos_between(n, m);
-                // Both sines are >= 0: the angle of (cos, sin) is wider when the cross
-                // product with the widest so far is positive.
-                if widest.is_none_or(|(s, c)| sin * c - cos * s > 0.0) {
-                    widest = Some((sin, cos));
+                if m != [0.0; 3] {
+                    let (sin, cos) = sin_cos_between(n, m);
+                    acc = fold(acc, v, f, sin, cos);
                 }
             }
-            widest.map(|(sin, cos)| sin.atan2(cos).to_degrees() as f32)
+            acc
         })
         .collect()
 }
@@ -53,36 +73,30 @@ pub struct NormalTurn {
 
 /// [`NormalTurn`] per vertex; `None` where the normal curvature is undefined.
 pub fn vertex_normal_turn(mesh: &Mesh, topology: &Topology) -> Vec<Option<NormalTurn>> {
-    let (fnormals, vnormals) = face_and_vertex_normals(mesh, topology);
     let (p, triangles) = (mesh.positions(), mesh.triangles());
-    (0..mesh.n_vertices())
-        .into_par_iter()
-        .map(|v| {
-            let n = vnormals[v];
-            if n == [0.0; 3] {
-                return None;
-            }
-            let mut largest: Option<(f64, f64)> = None;
-            for &f in topology.vertex_faces(v) {
-                let m = fnormals[f as usize];
-                if m == [0.0; 3] {
-                    continue;
-                }
-                let angle = angle_between(n, m);
-                let distance = centroid_distance(p, triangles[f as usize], v);
-                let rate = if distance > 0.0 {
-                    angle / distance
-                } else {
-                    f64::INFINITY
-                };
-                largest = Some(largest.map_or((angle, rate), |(a, r)| (a.max(angle), r.max(rate))));
-            }
-            largest.map(|(a, r)| NormalTurn {
-                deg: a.to_degrees() as f32,
-                deg_per_mm: r.to_degrees() as f32,
-            })
+    fold_face_angles(
+        mesh,
+        topology,
+        |largest: Option<(f64, f64)>, v, f, sin, cos| {
+            // Accurate near 0, unlike the arccosine of the cosine.
+            let angle = sin.atan2(cos);
+            let distance = centroid_distance(p, triangles[f as usize], v);
+            let rate = if distance > 0.0 {
+                angle / distance
+            } else {
+                f64::INFINITY
+            };
+            Some(largest.map_or((angle, rate), |(a, r)| (a.max(angle), r.max(rate))))
+        },
+    )
+    .into_par_iter()
+    .map(|largest| {
+        largest.map(|(a, r)| NormalTurn {
+            deg: a.to_degrees() as f32,
+            deg_per_mm: r.to_degrees() as f32,
         })
-        .collect()
+    })
+    .collect()
 }
 
 /// A mesh's face and vertex normals, to ask which vertices turn within limits (flat-vertex
@@ -187,12 +201,6 @@ pub fn average_normal_curvature(mesh: &Mesh, topology: &Topology) -> f64 {
     }
     let total = deterministic_sum(per_vertex.len(), |v| per_vertex[v].map_or(0.0, f64::from));
     total / n_defined as f64
-}
-
-/// Angle between two unit vectors in radians, accurate near 0 (atan2 of |a x b| and a . b).
-fn angle_between(a: [f32; 3], b: [f32; 3]) -> f64 {
-    let (sin, cos) = sin_cos_between(a, b);
-    sin.atan2(cos)
 }
 
 /// |a x b| and a . b in f64: the sine and cosine of the angle between unit vectors.
