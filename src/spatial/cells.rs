@@ -198,9 +198,13 @@ fn cell_lists(
             }
         }
     }
+    // One stretch per thread, but the stretches' counts (4 bytes per cell each) together no
+    // larger than the corners the index keeps (36 bytes per triangle): a grid of about 3.5
+    // cells per triangle gets two stretches whatever the number of cores.
+    let by_memory = (9 * triangles.len() / n_cells.max(1)).max(1);
     let stretch = triangles
         .len()
-        .div_ceil(rayon::current_num_threads().clamp(1, 8))
+        .div_ceil(rayon::current_num_threads().clamp(1, 8).min(by_memory))
         .max(1 << 14);
     let stretches: Vec<&[[[f32; 3]; 3]]> = triangles.chunks(stretch).collect();
     // Per stretch, its triangles in each cell.

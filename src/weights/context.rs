@@ -193,6 +193,7 @@ pub fn context_in_mesh_order(
         },
         || cap_candidates_with(&turns, topology, &params.cap_params),
     );
+    drop(turns);
     let reach: Option<Vec<bool>> = staircase
         .as_ref()
         .map(|s| s.distance_mm.iter().map(|d| d.is_finite()).collect());
