@@ -13,3 +13,18 @@ pub use normal_curvature::{
 };
 pub use quality::{displacement_stats, displacements, min_triangle_angle, DisplacementStats};
 pub use volume::{enclosed_volume, EnclosedVolume};
+
+/// Whether the angle of the direction (`cos_a`, `sin_a`) is wider than that of (`cos_b`,
+/// `sin_b`), sines >= 0 (angles in [0, 180] degrees), without the arctangents: the sign of the
+/// 2-D cross product decides, and only when it is within rounding of zero (a tie, or a zero
+/// vector) are the arctangents compared. It never says the opposite of comparing
+/// `sin.atan2(cos)` of each, so a widest or narrowest pick has the arctangents' own value.
+#[inline]
+pub fn wider_angle(sin_a: f64, cos_a: f64, sin_b: f64, cos_b: f64) -> bool {
+    let (x, y) = (sin_a * cos_b, cos_a * sin_b);
+    if (x - y).abs() > 1e-12 * (x.abs() + y.abs()) {
+        x > y
+    } else {
+        sin_a.atan2(cos_a) > sin_b.atan2(cos_b)
+    }
+}

@@ -11,19 +11,15 @@ use rayon::prelude::*;
 /// area or its normal cancels out (unreferenced or degenerate neighbourhoods).
 ///
 /// The same values as [`vertex_normal_turn`]'s `deg`, found with one arctangent per vertex:
-/// the widest of a vertex's angles is picked by comparing (cos, sin) pairs, a cross product
-/// whose sign orders angles in [0, 180] degrees, and only its arctangent is taken.
+/// the widest of a vertex's angles is picked by comparing (cos, sin) pairs
+/// ([`wider_angle`](super::wider_angle)), and only its arctangent is taken.
 pub fn vertex_normal_curvature(mesh: &Mesh, topology: &Topology) -> Vec<Option<f32>> {
     fold_face_angles(
         mesh,
         topology,
-        |widest: Option<(f64, f64)>, _, _, sin, cos| {
-            // Both sines are >= 0: the angle of (cos, sin) is wider when the cross product with
-            // the widest so far is positive.
-            match widest {
-                Some((s, c)) if sin * c - cos * s <= 0.0 => widest,
-                _ => Some((sin, cos)),
-            }
+        |widest: Option<(f64, f64)>, _, _, sin, cos| match widest {
+            Some((s, c)) if !super::wider_angle(sin, cos, s, c) => widest,
+            _ => Some((sin, cos)),
         },
     )
     .into_par_iter()

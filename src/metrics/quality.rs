@@ -5,8 +5,33 @@ use crate::parallel::deterministic_sum;
 use rayon::prelude::*;
 use serde::Serialize;
 
-/// Smallest interior angle over all triangles, in degrees (0 for degenerate triangles).
+/// Smallest interior angle over all triangles, in degrees (0 for degenerate triangles). Each
+/// triangle's smallest corner is picked by comparing (cos, sin) pairs
+/// ([`wider_angle`](super::wider_angle)) and only its arctangent is taken: the value
+/// [`min_triangle_angle_of_every_corner`] gives, with a third of the arctangents.
 pub fn min_triangle_angle(mesh: &Mesh) -> f64 {
+    let p = mesh.positions();
+    mesh.triangles()
+        .par_iter()
+        .map(|t| {
+            let q = t.map(|v| p[v as usize].map(f64::from));
+            let (sin, cos) =
+                (1..3)
+                    .map(|k| corner_sin_cos(q, k))
+                    .fold(corner_sin_cos(q, 0), |a, b| {
+                        if super::wider_angle(a.0, a.1, b.0, b.1) {
+                            b
+                        } else {
+                            a
+                        }
+                    });
+            sin.atan2(cos).to_degrees()
+        })
+        .reduce(|| 180.0, f64::min)
+}
+
+/// [`min_triangle_angle`] with an arctangent at every corner: the reference it must equal.
+pub fn min_triangle_angle_of_every_corner(mesh: &Mesh) -> f64 {
     let p = mesh.positions();
     mesh.triangles()
         .par_iter()
@@ -14,21 +39,27 @@ pub fn min_triangle_angle(mesh: &Mesh) -> f64 {
             let q = t.map(|v| p[v as usize].map(f64::from));
             (0..3)
                 .map(|k| {
-                    let (a, b, c) = (q[k], q[(k + 1) % 3], q[(k + 2) % 3]);
-                    let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-                    let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-                    let dot = u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
-                    let cr = [
-                        u[1] * v[2] - u[2] * v[1],
-                        u[2] * v[0] - u[0] * v[2],
-                        u[0] * v[1] - u[1] * v[0],
-                    ];
-                    let sin = (cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2]).sqrt();
-                    sin.atan2(dot).to_degrees()
+                    let (sin, cos) = corner_sin_cos(q, k);
+                    sin.atan2(cos).to_degrees()
                 })
                 .fold(180.0, f64::min)
         })
         .reduce(|| 180.0, f64::min)
+}
+
+/// |u x v| and u . v for the edges u, v leaving corner `k` of triangle `q`: the corner
+/// angle's sine and cosine, both scaled by the product of the edge lengths.
+fn corner_sin_cos(q: [[f64; 3]; 3], k: usize) -> (f64, f64) {
+    let (a, b, c) = (q[k], q[(k + 1) % 3], q[(k + 2) % 3]);
+    let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
+    let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
+    let dot = u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
+    let cr = [
+        u[1] * v[2] - u[2] * v[1],
+        u[2] * v[0] - u[0] * v[2],
+        u[0] * v[1] - u[1] * v[0],
+    ];
+    ((cr[0] * cr[0] + cr[1] * cr[1] + cr[2] * cr[2]).sqrt(), dot)
 }
 
 /// Bins in the displacement histogram.

@@ -64,4 +64,93 @@ mod shape_tests {
         assert_eq!((q.min_angle_deg, q.aspect_histogram[5]), (0.0, 1));
         assert!(q.max_aspect.is_infinite());
     }
+
+    /// The smallest angle picked by comparing sine and cosine pairs is the one the
+    /// arctangent of every corner gives, triangle by triangle: on the phantom's marching-cubes
+    /// triangles (many equal angles), jittered ones, and ones with a repeated corner or all
+    /// corners on a line.
+    #[test]
+    fn smallest_angle_matches_every_corner() {
+        let case = destair::phantom::big_case(20_000, &Default::default());
+        let mesh = &case.meshes[0].1;
+        let p = mesh.positions();
+        let mut rng = fastrand::Rng::with_seed(3);
+        let mut checked = 0;
+        for t in mesh.triangles().iter().step_by(3) {
+            let mut q = t.map(|v| p[v as usize]);
+            match rng.u8(..6) {
+                0 => q[1] = q[0],
+                1 => {
+                    q[2] = [
+                        2.0 * q[1][0] - q[0][0],
+                        2.0 * q[1][1] - q[0][1],
+                        2.0 * q[1][2] - q[0][2],
+                    ]
+                }
+                2 | 3 => {
+                    for x in q.iter_mut().flatten() {
+                        *x += (rng.f32() - 0.5) * 0.4;
+                    }
+                }
+                _ => {}
+            }
+            let one = Mesh::new(q.to_vec(), vec![[0, 1, 2]]).unwrap();
+            assert_eq!(
+                min_triangle_angle(&one).to_bits(),
+                min_triangle_angle_of_every_corner(&one).to_bits(),
+                "{q:?}"
+            );
+            checked += 1;
+        }
+        assert!(checked > 5000);
+        assert_eq!(
+            min_triangle_angle(mesh).to_bits(),
+            min_triangle_angle_of_every_corner(mesh).to_bits()
+        );
+    }
+
+    /// `wider_angle` never orders two directions against their arctangents, ties and zero vectors
+    /// included.
+    #[test]
+    fn wider_angle_orders_as_the_arctangent() {
+        let mut rng = fastrand::Rng::with_seed(8);
+        let special = [0.0, -0.0, 1.0, -1.0, 0.5, 1e-300, 3.0];
+        let (mut both, mut ties) = ([0usize; 2], 0);
+        for i in 0..200_000 {
+            let pick = |rng: &mut fastrand::Rng, sign: bool| {
+                let x = if i % 3 == 0 {
+                    special[rng.usize(..special.len())]
+                } else {
+                    (rng.f64() - 0.5) * 10f64.powi(rng.i32(-3..3))
+                };
+                if sign {
+                    x.abs()
+                } else {
+                    x
+                }
+            };
+            let (sa, ca) = (pick(&mut rng, true), pick(&mut rng, false));
+            let (sb, cb) = if i % 5 == 0 {
+                // The same direction at another length (a tie).
+                let k = rng.f64() * 4.0;
+                (sa * k, ca * k)
+            } else {
+                (pick(&mut rng, true), pick(&mut rng, false))
+            };
+            // Never the other way round from the arctangents (which may round equal where
+            // the directions differ): a maximum or minimum picked with it has their value.
+            let (a, b) = (sa.atan2(ca), sb.atan2(cb));
+            let wider = destair::metrics::wider_angle(sa, ca, sb, cb);
+            assert!(
+                if wider { a >= b } else { a <= b },
+                "({sa}, {ca}) vs ({sb}, {cb}): {wider}"
+            );
+            both[usize::from(wider)] += 1;
+            ties += usize::from(a == b);
+        }
+        assert!(
+            both[0] > 50_000 && both[1] > 50_000 && ties > 20_000,
+            "{both:?} {ties}"
+        );
+    }
 }
