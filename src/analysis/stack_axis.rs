@@ -123,35 +123,45 @@ pub fn stack_axis_with(turns: &TurnLimits, params: &StackAxisParams) -> StackAxi
     let mesh = turns.mesh();
     let flat = turns.within(params.flat_deg, params.flat_deg_per_mm);
     let support = turns.within(params.support_flat_deg, f32::INFINITY);
-    let candidate = |v: u32| flat[v as usize];
-    let supporting = |v: u32| support[v as usize];
     // Evidence is the area of flat faces, not a face count: slivers (which marching cubes makes
     // wherever the surface passes close to a grid point) then cannot outvote real terraces.
-    let unit_normals = |flat: &(dyn Fn(u32) -> bool + Sync)| -> (Vec<[f64; 3]>, Vec<f64>) {
-        mesh.triangles()
-            .par_iter()
-            .filter_map(|&t| {
-                if !t.iter().all(|&v| flat(v)) {
-                    return None;
+    // Unit normal and area of every face whose corners all pass `flat`, in face order: fixed
+    // blocks of faces in parallel, each a plain loop, joined in block order.
+    let unit_normals = |flat: &[bool]| -> (Vec<[f64; 3]>, Vec<f64>) {
+        let blocks: Vec<(Vec<[f64; 3]>, Vec<f64>)> = mesh
+            .triangles()
+            .par_chunks(1 << 16)
+            .map(|block| {
+                let mut out = (Vec::new(), Vec::new());
+                for &t in block {
+                    if !(flat[t[0] as usize] && flat[t[1] as usize] && flat[t[2] as usize]) {
+                        continue;
+                    }
+                    let v = triangle_area_vector(mesh, t).map(f64::from);
+                    let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+                    if len > 0.0 && len.is_finite() {
+                        out.0.push(v.map(|x| x / len));
+                        out.1.push(0.5 * len);
+                    }
                 }
-                let v = triangle_area_vector(mesh, t).map(f64::from);
-                let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-                (len > 0.0 && len.is_finite()).then(|| (v.map(|x| x / len), 0.5 * len))
+                out
             })
-            .unzip()
+            .collect();
+        let n = blocks.iter().map(|b| b.0.len()).sum();
+        let mut all = (Vec::with_capacity(n), Vec::with_capacity(n));
+        for (normals, areas) in blocks {
+            all.0.extend_from_slice(&normals);
+            all.1.extend_from_slice(&areas);
+        }
+        all
     };
-    let (normals, areas) = unit_normals(&candidate);
-    let (support_normals, support_areas) = unit_normals(&supporting);
-    let all_areas: Vec<f64> = mesh
-        .triangles()
-        .par_iter()
-        .map(|&t| {
-            let v = triangle_area_vector(mesh, t);
-            0.5 * (v.iter().map(|&x| (x as f64).powi(2)).sum::<f64>()).sqrt()
-        })
-        .collect();
+    let (normals, areas) = unit_normals(&flat);
+    let (support_normals, support_areas) = unit_normals(&support);
     // Shares are of the whole surface, so a mesh with little flat area gives little evidence.
-    let total_area = deterministic_sum(all_areas.len(), |i| all_areas[i]);
+    let total_area = deterministic_sum(mesh.n_triangles(), |f| {
+        let v = triangle_area_vector(mesh, mesh.triangles()[f]);
+        0.5 * (v.iter().map(|&x| (x as f64).powi(2)).sum::<f64>()).sqrt()
+    });
     if normals.is_empty() || total_area <= 0.0 {
         return StackAxis::TooWeak { best_share: 0.0 };
     }

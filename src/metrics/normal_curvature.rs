@@ -102,6 +102,10 @@ pub struct TurnLimits<'a> {
     topology: &'a Topology,
     fnormals: Vec<[f32; 3]>,
     vnormals: Vec<[f32; 3]>,
+    /// Limits given to [`TurnLimits::remember`] (as bits), and per vertex the flags found for
+    /// them (bit k for limit k).
+    remembered_limits: Vec<(u32, u32)>,
+    remembered: Vec<u8>,
 }
 
 impl<'a> TurnLimits<'a> {
@@ -113,6 +117,8 @@ impl<'a> TurnLimits<'a> {
             topology,
             fnormals,
             vnormals,
+            remembered_limits: Vec::new(),
+            remembered: Vec::new(),
         }
     }
 
@@ -133,26 +139,74 @@ impl<'a> TurnLimits<'a> {
     /// most `max_deg_per_mm` (false where undefined). The same decision as comparing
     /// [`vertex_normal_turn`]'s values, but the arctangent is taken only for faces near a
     /// limit: below a limit by a margin far above rounding, tan(angle) (a ratio, an upper bound
-    /// of the angle) already decides.
+    /// of the angle) already decides. Limits given to [`TurnLimits::remember`] are answered
+    /// from the flags found there.
     pub fn within(&self, max_deg: f32, max_deg_per_mm: f32) -> Vec<bool> {
+        let key = (max_deg.to_bits(), max_deg_per_mm.to_bits());
+        if let Some(k) = self.remembered_limits.iter().position(|&l| l == key) {
+            return self
+                .remembered
+                .iter()
+                .map(|&bits| bits >> k & 1 == 1)
+                .collect();
+        }
+        self.within_each(&[(max_deg, max_deg_per_mm)])
+            .into_iter()
+            .map(|bits| bits == 1)
+            .collect()
+    }
+
+    /// Finds the flags of [`TurnLimits::within`] for up to eight pairs of limits (degrees,
+    /// degrees per mm) in one walk over every vertex's faces, for the analyses that ask for
+    /// them later: one angle per face instead of one per face and limit.
+    pub fn remember(&mut self, limits: &[(f32, f32)]) {
+        let limits = &limits[..limits.len().min(8)];
+        self.remembered = self.within_each(limits);
+        self.remembered_limits = limits
+            .iter()
+            .map(|&(deg, rate)| (deg.to_bits(), rate.to_bits()))
+            .collect();
+    }
+
+    /// Per vertex, bit `k` set when the vertex is within `limits[k]` (at most eight).
+    fn within_each(&self, limits: &[(f32, f32)]) -> Vec<u8> {
+        /// One pair of limits, with what the quick tests need.
+        struct Limit {
+            max_deg: f32,
+            max_deg_per_mm: f32,
+            quick_limit: bool,
+            tan_max: f64,
+            max_rate: f64,
+        }
         let (p, triangles) = (self.mesh.positions(), self.mesh.triangles());
         // Limits in radians, less a relative margin of 1e-6 for the quick tests (which need a
         // limit below 90 degrees and a face less than 90 degrees away).
         let safe = 1.0 - 1e-6;
-        let max_rad = f64::from(max_deg).to_radians();
-        let quick_limit = max_rad * safe < std::f64::consts::FRAC_PI_2;
-        let tan_max = (max_rad * safe).tan();
-        let max_rate = f64::from(max_deg_per_mm).to_radians();
-        let within_deg = |angle: f64| (angle.to_degrees() as f32) <= max_deg;
-        let within_rate = |rate: f64| (rate.to_degrees() as f32) <= max_deg_per_mm;
+        let limits: Vec<Limit> = limits
+            .iter()
+            .take(8)
+            .map(|&(max_deg, max_deg_per_mm)| {
+                let max_rad = f64::from(max_deg).to_radians();
+                Limit {
+                    max_deg,
+                    max_deg_per_mm,
+                    quick_limit: max_rad * safe < std::f64::consts::FRAC_PI_2,
+                    tan_max: (max_rad * safe).tan(),
+                    max_rate: f64::from(max_deg_per_mm).to_radians(),
+                }
+            })
+            .collect();
+        let all: u8 = ((1u16 << limits.len()) - 1) as u8;
         (0..self.mesh.n_vertices())
             .into_par_iter()
             .map(|v| {
                 let n = self.vnormals[v];
                 if n == [0.0; 3] {
-                    return false;
+                    return 0;
                 }
                 let mut defined = false;
+                // Limits not yet exceeded by any face.
+                let mut open = all;
                 for &f in self.topology.vertex_faces(v) {
                     let m = self.fnormals[f as usize];
                     if m == [0.0; 3] {
@@ -160,32 +214,57 @@ impl<'a> TurnLimits<'a> {
                     }
                     defined = true;
                     let (sin, cos) = sin_cos_between(n, m);
-                    let quick = quick_limit && cos > 0.0;
-                    // Below the angle limit for certain when tan(angle) is below tan(limit).
-                    let angle = (!(quick && sin <= cos * tan_max)).then(|| sin.atan2(cos));
-                    if angle.is_some_and(|a| !within_deg(a)) {
-                        return false;
+                    let mut angle: Option<f64> = None;
+                    let mut distance: Option<f64> = None;
+                    for (k, limit) in limits.iter().enumerate() {
+                        if open >> k & 1 == 0 {
+                            continue;
+                        }
+                        let quick = limit.quick_limit && cos > 0.0;
+                        // Below the angle limit for certain when tan(angle) is below
+                        // tan(limit).
+                        if !(quick && sin <= cos * limit.tan_max) {
+                            let a = *angle.get_or_insert_with(|| sin.atan2(cos));
+                            if !at_most(a.to_degrees() as f32, limit.max_deg) {
+                                open &= !(1 << k);
+                                continue;
+                            }
+                        }
+                        if limit.max_deg_per_mm == f32::INFINITY {
+                            continue;
+                        }
+                        let d = *distance
+                            .get_or_insert_with(|| centroid_distance(p, triangles[f as usize], v));
+                        if d <= 0.0 {
+                            // An infinite rate: within only an infinite limit.
+                            open &= !(1 << k);
+                            continue;
+                        }
+                        if quick && sin <= cos * limit.max_rate * safe * d {
+                            continue;
+                        }
+                        let a = *angle.get_or_insert_with(|| sin.atan2(cos));
+                        if !at_most((a / d).to_degrees() as f32, limit.max_deg_per_mm) {
+                            open &= !(1 << k);
+                        }
                     }
-                    if max_deg_per_mm == f32::INFINITY {
-                        continue;
-                    }
-                    let distance = centroid_distance(p, triangles[f as usize], v);
-                    if distance <= 0.0 {
-                        // An infinite rate: within only an infinite limit.
-                        return false;
-                    }
-                    if quick && sin <= cos * max_rate * safe * distance {
-                        continue;
-                    }
-                    let a = angle.unwrap_or_else(|| sin.atan2(cos));
-                    if !within_rate(a / distance) {
-                        return false;
+                    if open == 0 {
+                        return 0;
                     }
                 }
-                defined
+                if defined {
+                    open
+                } else {
+                    0
+                }
             })
             .collect()
     }
+}
+
+/// `x <= limit`, false for NaN: a turn that cannot be measured is not within any limit.
+fn at_most(x: f32, limit: f32) -> bool {
+    x <= limit
 }
 
 /// Mean normal curvature in degrees over the vertices where it is defined; 0 if none.

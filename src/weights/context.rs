@@ -163,7 +163,15 @@ pub fn context_in_mesh_order(
 ) -> Context {
     let n = mesh.n_vertices();
     // Face and vertex normals once, for the stack axis, the staircases and the caps.
-    let turns = TurnLimits::new(mesh, topology);
+    let mut turns = TurnLimits::new(mesh, topology);
+    // The flat-vertex tests of the stack axis and of cap detection's own look, in one walk.
+    let axis_params = StackAxisParams::default();
+    let mut limits = vec![(params.cap_params.flat_deg, f32::INFINITY)];
+    if params.staircase && params.axis == AxisChoice::Auto {
+        limits.push((axis_params.flat_deg, axis_params.flat_deg_per_mm));
+        limits.push((axis_params.support_flat_deg, f32::INFINITY));
+    }
+    turns.remember(&limits);
     // Cap candidates need nothing from the staircases but their reach, applied at the end:
     // the search (flood fills and growth, partly serial) runs beside the staircase analysis.
     let ((estimated_axis, axis, staircase), candidates) = rayon::join(
@@ -180,7 +188,7 @@ pub fn context_in_mesh_order(
                         )
                     }
                     AxisChoice::Auto => {
-                        let est = stack_axis_with(&turns, &StackAxisParams::default());
+                        let est = stack_axis_with(&turns, &axis_params);
                         (Some(est), est.axis().map(|a| a.map(|x| x as f32)))
                     }
                 }

@@ -26,10 +26,23 @@ fn right_angle_fold_by_hand() {
     assert!((average_normal_curvature(&m, &t) - 22.5).abs() < 1e-4);
 }
 
-/// The quick tangent test decides as the values of `vertex_normal_turn` do, also with the
-/// limits set to values that occur (ties) and just around them.
-#[test]
-fn turns_within_limits_agree_with_the_turn_values() {
+/// The float just below a non-negative `x` (f32::next_down needs Rust 1.86).
+fn next_down(x: f32) -> f32 {
+    if x > 0.0 {
+        f32::from_bits(x.to_bits() - 1)
+    } else {
+        -f32::from_bits(1)
+    }
+}
+
+/// The float just above a non-negative finite `x`.
+fn next_up(x: f32) -> f32 {
+    f32::from_bits(x.abs().to_bits() + 1)
+}
+
+/// A jittered phantom, its turn values, and limits set to values that occur (ties) and just
+/// around them, with a few plain ones.
+fn jittered_turns_and_limits() -> (Mesh, Vec<Option<NormalTurn>>, Vec<(f32, f32)>) {
     let case = destair::phantom::big_case(20_000, &Default::default());
     let mut mesh = case.meshes[0].1.clone();
     let mut rng = fastrand::Rng::with_seed(4);
@@ -43,12 +56,21 @@ fn turns_within_limits_agree_with_the_turn_values() {
     let defined: Vec<NormalTurn> = turn.iter().flatten().copied().collect();
     let mut limits: Vec<(f32, f32)> = vec![(5.0, f32::INFINITY), (5.0, 3.0), (0.0, 0.0)];
     for t in defined.iter().step_by(97) {
-        for d in [t.deg, t.deg.next_down(), t.deg.next_up()] {
+        for d in [t.deg, next_down(t.deg), next_up(t.deg)] {
             limits.push((d, f32::INFINITY));
             limits.push((d, t.deg_per_mm));
-            limits.push((90.0, t.deg_per_mm.next_down()));
+            limits.push((90.0, next_down(t.deg_per_mm)));
         }
     }
+    (mesh, turn, limits)
+}
+
+/// The quick tangent test decides as the values of `vertex_normal_turn` do, also with the
+/// limits set to values that occur (ties) and just around them.
+#[test]
+fn turns_within_limits_agree_with_the_turn_values() {
+    let (mesh, turn, limits) = jittered_turns_and_limits();
+    let topology = Topology::build(&mesh);
     let mut both = [0usize; 2];
     for (max_deg, max_per_mm) in limits {
         let fast = TurnLimits::new(&mesh, &topology).within(max_deg, max_per_mm);
@@ -60,6 +82,34 @@ fn turns_within_limits_agree_with_the_turn_values() {
     }
     // Both answers occur often.
     assert!(both[0] > 10_000 && both[1] > 10_000, "{both:?}");
+}
+
+/// Limits found together in one walk (`remember`, up to eight at a time) decide as the turn
+/// values do, each on its own; limits not remembered are still found on request.
+#[test]
+fn remembered_limits_agree_with_the_turn_values() {
+    let (mesh, turn, limits) = jittered_turns_and_limits();
+    let topology = Topology::build(&mesh);
+    let check = |turns: &TurnLimits, (max_deg, max_per_mm): (f32, f32)| {
+        let flags = turns.within(max_deg, max_per_mm);
+        for (v, t) in turn.iter().enumerate() {
+            let want = t.is_some_and(|t| t.deg <= max_deg && t.deg_per_mm <= max_per_mm);
+            assert_eq!(flags[v], want, "vertex {v}, limits {max_deg} / {max_per_mm}");
+        }
+    };
+    let mut turns = TurnLimits::new(&mesh, &topology);
+    for group in limits.chunks(8) {
+        turns.remember(group);
+        for &limit in group {
+            check(&turns, limit);
+        }
+        check(&turns, (2.5, 1.0));
+    }
+    // More than eight: the first eight are remembered, the rest found on request.
+    turns.remember(&limits[..12]);
+    for &limit in &limits[..12] {
+        check(&turns, limit);
+    }
 }
 
 /// The one-arctangent path gives `vertex_normal_turn`'s angles on a jittered phantom, with
