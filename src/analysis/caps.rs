@@ -442,9 +442,8 @@ fn caps_of(
             }
         }
     }
-    // A grown region's verdict depends only on its faces and the final assignment (a face
-    // goes to the first region that reaches it), so all regions are grown first, then examined
-    // side by side (a large one with its large steps in parallel too) and counted in order.
+    // A grown region's verdict depends only on its faces (a face goes to the first region
+    // that reaches it), so all regions are grown first, then examined side by side (a large one with its large steps in parallel too) and counted in order.
     let scratch_pool = std::sync::Mutex::new(Vec::new());
     let verdicts: Vec<Verdict> = kept
         .par_iter()
@@ -453,7 +452,7 @@ fn caps_of(
             let taken = scratch_pool.lock().map(|mut pool| pool.pop());
             let (mut stamp, mut reached) = taken.ok().flatten().unwrap_or_else(|| {
                 (
-                    vec![NONE; mesh.n_vertices()],
+                    vec![(NONE, 0); mesh.n_vertices()],
                     Reached::new(mesh.n_vertices()),
                 )
             });
@@ -461,7 +460,6 @@ fn caps_of(
                 mesh,
                 topology,
                 normals,
-                &region,
                 (id as u32, faces),
                 (&mut stamp, &mut reached),
                 params,
@@ -497,50 +495,61 @@ enum Verdict {
     Other,
 }
 
-/// The checks of [`caps_of`] on one grown region `id` (its `faces`, with `region` the final
-/// face-to-region assignment; `stamp`, one per vertex, is scratch passed between regions and
-/// never holds `id` before; `reached` is the outward search's scratch).
+/// The checks of [`caps_of`] on one grown region `id` (its `faces`; `stamp`, one per vertex,
+/// is scratch passed between regions and never holds `id` before; `reached` is the outward
+/// search's scratch).
 fn examine_region(
     mesh: &Mesh,
     topology: &Topology,
     normals: &[[f32; 3]],
-    region: &[u32],
     (id, faces): (u32, &[u32]),
-    (stamp, reached): (&mut [u32], &mut Reached),
+    (stamp, reached): (&mut [(u32, u32)], &mut Reached),
     params: &CapParams,
 ) -> Verdict {
     let (tris, p) = (mesh.triangles(), mesh.positions());
-    // The region's vertices, each stamped with its id once: no sort of every corner and no
-    // search per lookup (a region can be the whole of a finely sampled surface).
+    // The region's vertices, each stamped with its id once (no sort of every corner and no
+    // search per lookup: a region can be the whole of a finely sampled surface), with the
+    // number of the region's faces around it; and the sum of the area vectors, in face order
+    // as in `region_normal`.
     let mut vertices: Vec<u32> = Vec::new();
+    let mut area_sum = [0.0f64; 3];
     for &f in faces {
-        for v in tris[f as usize] {
-            if stamp[v as usize] != id {
-                stamp[v as usize] = id;
+        let t = tris[f as usize];
+        let a = triangle_area_vector(mesh, t);
+        for k in 0..3 {
+            area_sum[k] += a[k] as f64;
+        }
+        for v in t {
+            let s = &mut stamp[v as usize];
+            if s.0 == id {
+                s.1 += 1;
+            } else {
+                *s = (id, 1);
                 vertices.push(v);
             }
         }
     }
     let stamp = &*stamp;
-    let in_region = |v: u32| stamp[v as usize] == id;
-    // Border vertices: some incident face outside the region. A region without one (a closed
-    // surface flat everywhere at this sampling) is no cap.
-    let mut border: Vec<u32> = vertices
-        .par_iter()
-        .with_min_len(4096)
-        .copied()
-        .filter(|&v| {
-            topology
-                .vertex_faces(v as usize)
-                .iter()
-                .any(|&g| region[g as usize] != id)
-        })
-        .collect();
+    let in_region = |v: u32| stamp[v as usize].0 == id;
+    // Border vertices: some incident face outside the region, so fewer region faces around
+    // them than faces (a region face has three distinct corners, each listing it once). A
+    // region without one (a closed surface flat everywhere at this sampling) is no cap.
+    let border_of = |chunk: &[u32]| -> Vec<u32> {
+        (chunk.iter().copied())
+            .filter(|&v| (stamp[v as usize].1 as usize) < topology.vertex_faces(v as usize).len())
+            .collect()
+    };
+    let mut border: Vec<u32> = if vertices.len() <= 1 << 14 {
+        border_of(&vertices)
+    } else {
+        let parts: Vec<Vec<u32>> = vertices.par_chunks(1 << 14).map(border_of).collect();
+        parts.concat()
+    };
     if border.is_empty() {
         return Verdict::Other;
     }
     border.par_sort_unstable();
-    let normal = region_normal(mesh, faces);
+    let normal = unit_f32(area_sum);
     // Sign of the largest offset of the outside neighbours along the region normal, counted
     // where the slope is clear.
     let (up, down) = border
@@ -762,9 +771,14 @@ fn region_normal(mesh: &Mesh, faces: &[u32]) -> [f32; 3] {
         let vectors: Vec<[f32; 3]> = faces.par_iter().map(|&f| area_vector(f)).collect();
         vectors.into_iter().for_each(add);
     }
-    let len = (sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]).sqrt();
+    unit_f32(sum)
+}
+
+/// `v` scaled to unit length, in f32; zero for a zero vector.
+fn unit_f32(v: [f64; 3]) -> [f32; 3] {
+    let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
     if len > 0.0 {
-        sum.map(|x| (x / len) as f32)
+        v.map(|x| (x / len) as f32)
     } else {
         [0.0; 3]
     }
