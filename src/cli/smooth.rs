@@ -314,28 +314,33 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         destair::smooth::displacement_unit(mesh, &topology, voxel),
     )
     .map_err(|m| Rejected(format!("{}: {m}; nothing written", input.display())))?;
-    let mut smoothed = mesh.clone();
-    smoothed.positions_mut().copy_from_slice(&positions);
-    let cfd = match (&prepared, &cfd) {
+    // VTP always carries the arrays (it is the viewers' format); PLY with --annotate.
+    let lengths: Option<Vec<f32>> =
+        (prepared.is_none() && (annotate || format == destair::io::OutputFormat::Vtp)).then(|| {
+            destair::metrics::displacements(mesh.positions(), &positions)
+                .into_iter()
+                .map(|d| d as f32)
+                .collect()
+        });
+    let (smoothed, cfd) = match (&prepared, &cfd) {
         (Some(p), Some(profile)) => {
+            let mut smoothed = mesh.clone();
+            smoothed.positions_mut().copy_from_slice(&positions);
             let done = destair::cfd::finish_surface(mesh, &smoothed, p, &profile.finish)
                 .map_err(|e| Rejected(format!("{}: {e}; nothing written", input.display())))?;
-            smoothed = done.mesh.clone();
-            Some(done)
+            (done.mesh.clone(), Some(done))
         }
-        _ => None,
+        // The input's own faces take the new positions: no copy of every face.
+        _ => {
+            let mut smoothed = loaded.mesh;
+            smoothed.positions_mut().copy_from_slice(&positions);
+            (smoothed, None)
+        }
     };
-    let lengths: Vec<f32> = destair::metrics::displacements(mesh.positions(), &positions)
-        .into_iter()
-        .map(|d| d as f32)
-        .collect();
-    // VTP always carries the arrays (it is the viewers' format); PLY with --annotate.
-    let arrays: Vec<(&str, &[f32])> =
-        if cfd.is_none() && (annotate || format == destair::io::OutputFormat::Vtp) {
-            vec![("weight", weights.as_slice()), ("displacement", &lengths)]
-        } else {
-            Vec::new()
-        };
+    let arrays: Vec<(&str, &[f32])> = match &lengths {
+        Some(lengths) => vec![("weight", weights.as_slice()), ("displacement", lengths)],
+        None => Vec::new(),
+    };
     destair::io::write_annotated(&output, &smoothed, &loaded.meta, &arrays, "displacement")?;
     println!(
         "{} {}: {} iterations{} in {:.3} s, last step {:.5} mm, {} vertices fixed -> {}",
