@@ -24,6 +24,9 @@ pub fn wider_angle(sin_a: f64, cos_a: f64, sin_b: f64, cos_b: f64) -> bool {
     let (x, y) = (sin_a * cos_b, cos_a * sin_b);
     if (x - y).abs() > 1e-12 * (x.abs() + y.abs()) {
         x > y
+    } else if sin_a.to_bits() == sin_b.to_bits() && cos_a.to_bits() == cos_b.to_bits() {
+        // The same pair (faces of one plane), so the same arctangent: neither is wider.
+        false
     } else {
         sin_a.atan2(cos_a) > sin_b.atan2(cos_b)
     }

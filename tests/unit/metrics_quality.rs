@@ -131,8 +131,8 @@ mod shape_tests {
             };
             let (sa, ca) = (pick(&mut rng, true), pick(&mut rng, false));
             let (sb, cb) = if i % 5 == 0 {
-                // The same direction at another length (a tie).
-                let k = rng.f64() * 4.0;
+                // The same direction at another length or the same pair (a tie).
+                let k = if i % 10 == 0 { 1.0 } else { rng.f64() * 4.0 };
                 (sa * k, ca * k)
             } else {
                 (pick(&mut rng, true), pick(&mut rng, false))
