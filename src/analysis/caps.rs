@@ -262,10 +262,11 @@ pub fn cap_candidates_with(
         || caps_of(turns, topology, &adjacency, params, f32::INFINITY),
         || {
             (params.smoothed_copy_iterations > 0).then(|| {
-                let copy = Mesh::from_checked_parts(
-                    low_pass(mesh, topology, params.smoothed_copy_iterations),
-                    mesh.triangles().to_vec(),
-                );
+                let copy = mesh.with_checked_positions(low_pass(
+                    mesh,
+                    topology,
+                    params.smoothed_copy_iterations,
+                ));
                 caps_of(
                     &TurnLimits::new(&copy, topology),
                     topology,

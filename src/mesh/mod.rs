@@ -12,6 +12,7 @@ pub mod umbrella;
 
 pub use topology::Topology;
 
+use std::sync::Arc;
 use thiserror::Error;
 
 /// Why a set of positions and triangles is not a valid mesh.
@@ -44,10 +45,13 @@ pub enum MeshError {
 
 /// A triangle mesh in millimetres. Vertex order is the file's order and is never changed,
 /// so per-vertex outputs (weights, displacements) line up with the input file.
+///
+/// The triangles never change once a mesh is built, so copies of a mesh (a smoothed one, a
+/// low-pass copy) share them instead of copying every face.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Mesh {
     positions: Vec<[f32; 3]>,
-    triangles: Vec<[u32; 3]>,
+    triangles: Arc<Vec<[u32; 3]>>,
 }
 
 impl Mesh {
@@ -73,7 +77,7 @@ impl Mesh {
         }
         Ok(Self {
             positions,
-            triangles,
+            triangles: Arc::new(triangles),
         })
     }
 
@@ -83,7 +87,18 @@ impl Mesh {
         debug_assert!(Mesh::new(positions.clone(), triangles.clone()).is_ok());
         Self {
             positions,
-            triangles,
+            triangles: Arc::new(triangles),
+        }
+    }
+
+    /// The same faces with other positions (one per vertex, finite, as the caller has made
+    /// sure): the faces are shared, not copied.
+    pub(crate) fn with_checked_positions(&self, positions: Vec<[f32; 3]>) -> Mesh {
+        debug_assert_eq!(positions.len(), self.positions.len());
+        debug_assert!(positions.iter().flatten().all(|x| x.is_finite()));
+        Self {
+            positions,
+            triangles: Arc::clone(&self.triangles),
         }
     }
 
@@ -106,7 +121,7 @@ impl Mesh {
             .collect();
         Mesh {
             positions,
-            triangles,
+            triangles: Arc::new(triangles),
         }
     }
 
@@ -135,9 +150,11 @@ impl Mesh {
         self.triangles.len()
     }
 
-    /// Takes the mesh apart into its positions and triangles.
+    /// Takes the mesh apart into its positions and triangles (copied if another mesh shares
+    /// them).
     pub fn into_parts(self) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
-        (self.positions, self.triangles)
+        let triangles = Arc::try_unwrap(self.triangles).unwrap_or_else(|shared| (*shared).clone());
+        (self.positions, triangles)
     }
 }
 

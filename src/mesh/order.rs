@@ -93,7 +93,7 @@ pub fn locality_ordered(mesh: &Mesh) -> (Mesh, Vec<u32>) {
     (
         Mesh {
             positions,
-            triangles,
+            triangles: std::sync::Arc::new(triangles),
         },
         face_order,
     )

@@ -21,3 +21,19 @@ fn rejects_bad_index_and_nan() {
         Err(MeshError::NonFinite { vertex: 1, .. })
     ));
 }
+
+/// Copies of a mesh share its faces: moving one copy's vertices or taking it apart leaves the
+/// other as it was.
+#[test]
+fn copies_keep_their_own_positions_and_faces() {
+    let p = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    let t = vec![[0, 1, 2], [0, 3, 1]];
+    let original = Mesh::new(p.clone(), t.clone()).unwrap();
+    let mut copy = original.clone();
+    copy.positions_mut()[3] = [5.0, 5.0, 5.0];
+    assert_eq!(original.positions(), &p[..]);
+    assert_eq!(copy.triangles(), &t[..]);
+    let (q, u) = copy.into_parts();
+    assert_eq!((q[3], u), ([5.0, 5.0, 5.0], t.clone()));
+    assert_eq!(original.into_parts(), (p, t));
+}

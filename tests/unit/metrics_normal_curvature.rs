@@ -94,7 +94,10 @@ fn remembered_limits_agree_with_the_turn_values() {
         let flags = turns.within(max_deg, max_per_mm);
         for (v, t) in turn.iter().enumerate() {
             let want = t.is_some_and(|t| t.deg <= max_deg && t.deg_per_mm <= max_per_mm);
-            assert_eq!(flags[v], want, "vertex {v}, limits {max_deg} / {max_per_mm}");
+            assert_eq!(
+                flags[v], want,
+                "vertex {v}, limits {max_deg} / {max_per_mm}"
+            );
         }
     };
     let mut turns = TurnLimits::new(&mesh, &topology);
