@@ -244,43 +244,80 @@ struct Candidate {
 
 /// [`CapCandidates`] of a mesh: both looks, side by side.
 pub fn cap_candidates(mesh: &Mesh, topology: &Topology, params: &CapParams) -> CapCandidates {
-    cap_candidates_with(&TurnLimits::new(mesh, topology), topology, params)
-}
-
-/// [`cap_candidates`] of the mesh whose normals `turns` holds (computed once for every
-/// analysis of the mesh); `topology` is the mesh's.
-pub fn cap_candidates_with(
-    turns: &TurnLimits,
-    topology: &Topology,
-    params: &CapParams,
-) -> CapCandidates {
-    let mesh = turns.mesh();
-    let adjacency = FaceNeighbours::build(mesh, topology);
+    let search = CapSearch::new(mesh, topology);
     // The two looks are independent and mostly serial (flood fills, growth): they run side by
     // side, and their results are merged in the same order as ever.
     let (plain, smoothed) = rayon::join(
-        || caps_of(turns, topology, &adjacency, params, f32::INFINITY),
-        || {
-            (params.smoothed_copy_iterations > 0).then(|| {
-                let copy = mesh.with_checked_positions(low_pass(
-                    mesh,
-                    topology,
-                    params.smoothed_copy_iterations,
-                ));
-                caps_of(
-                    &TurnLimits::new(&copy, topology),
-                    topology,
-                    &adjacency,
-                    params,
-                    params.smoothed_copy_flat_deg_per_mm,
-                )
-            })
-        },
+        || search.on_mesh(&TurnLimits::new(mesh, topology), topology, params),
+        || search.on_smoothed_copy(mesh, topology, params),
     );
-    CapCandidates { plain, smoothed }
+    CapCandidates::new(plain, smoothed)
+}
+
+/// What both looks of cap detection share (the faces' edge neighbours), so that each look can
+/// run beside other analyses of the mesh.
+pub struct CapSearch {
+    adjacency: FaceNeighbours,
+}
+
+/// What one look of cap detection found, for [`CapCandidates::new`].
+#[derive(Debug, Clone)]
+pub struct CapLook(Look);
+
+impl CapSearch {
+    /// Finds the faces' edge neighbours of `mesh` (whose topology is `topology`).
+    pub fn new(mesh: &Mesh, topology: &Topology) -> CapSearch {
+        CapSearch {
+            adjacency: FaceNeighbours::build(mesh, topology),
+        }
+    }
+
+    /// The look at the mesh whose normals `turns` holds (computed once for every analysis of
+    /// the mesh), as it is.
+    pub fn on_mesh(&self, turns: &TurnLimits, topology: &Topology, params: &CapParams) -> CapLook {
+        CapLook(caps_of(
+            turns,
+            topology,
+            &self.adjacency,
+            params,
+            f32::INFINITY,
+        ))
+    }
+
+    /// The look at a copy of `mesh` smoothed by `params.smoothed_copy_iterations` Laplace
+    /// iterations (none when that is 0): mostly serial, so it is best started first.
+    pub fn on_smoothed_copy(
+        &self,
+        mesh: &Mesh,
+        topology: &Topology,
+        params: &CapParams,
+    ) -> Option<CapLook> {
+        (params.smoothed_copy_iterations > 0).then(|| {
+            let copy = mesh.with_checked_positions(low_pass(
+                mesh,
+                topology,
+                params.smoothed_copy_iterations,
+            ));
+            CapLook(caps_of(
+                &TurnLimits::new(&copy, topology),
+                topology,
+                &self.adjacency,
+                params,
+                params.smoothed_copy_flat_deg_per_mm,
+            ))
+        })
+    }
 }
 
 impl CapCandidates {
+    /// The candidates of the two looks of [`CapSearch`].
+    pub fn new(plain: CapLook, smoothed: Option<CapLook>) -> CapCandidates {
+        CapCandidates {
+            plain: plain.0,
+            smoothed: smoothed.map(|look| look.0),
+        }
+    }
+
     /// The caps: candidates with enough of their border within `staircase_reach` (when given),
     /// those of the smoothed copy added where they overlap none of the mesh's own. `mesh` is
     /// the one the candidates were found on.

@@ -5,7 +5,7 @@ pub mod stack_axis;
 pub mod voxel_size;
 
 pub use caps::{
-    cap_candidates, cap_candidates_with, detect_caps, Cap, CapCandidates, CapDetection, CapParams,
+    cap_candidates, detect_caps, Cap, CapCandidates, CapDetection, CapLook, CapParams, CapSearch,
 };
 pub use stack_axis::{stack_axis, stack_axis_with, StackAxis, StackAxisParams};
 pub use voxel_size::{voxel_size, AxisSpacing, VoxelSizeEstimate};

@@ -7,7 +7,7 @@ use super::{
     distance_weights, Combine, DistanceScaling, StaircaseParams, StaircaseWeights, VertexWeights,
 };
 use crate::analysis::{
-    cap_candidates_with, stack_axis_with, CapDetection, CapParams, StackAxis, StackAxisParams,
+    stack_axis_with, CapCandidates, CapDetection, CapParams, CapSearch, StackAxis, StackAxisParams,
 };
 use crate::mesh::order::{is_scattered, scanline, Renumbering};
 use crate::mesh::{Mesh, Topology};
@@ -154,6 +154,43 @@ pub fn context_weights(
     context_in_mesh_order(&local, &local_topology, params, references).numbered_back(&order)
 }
 
+/// The stack axis (estimated, or given and normalised; none without staircase weighting) and
+/// the staircase weights along it.
+fn staircases(
+    mesh: &Mesh,
+    topology: &Topology,
+    turns: &TurnLimits,
+    params: &ContextParams,
+    axis_params: &StackAxisParams,
+) -> (
+    Option<StackAxis>,
+    Option<[f32; 3]>,
+    Option<StaircaseWeights>,
+) {
+    let (estimated_axis, axis) = if !params.staircase {
+        (None, None)
+    } else {
+        match params.axis {
+            AxisChoice::Given(a) => {
+                let len = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+                (
+                    None,
+                    (len > 0.0 && len.is_finite()).then(|| a.map(|x| x / len)),
+                )
+            }
+            AxisChoice::Auto => {
+                let est = stack_axis_with(turns, axis_params);
+                (Some(est), est.axis().map(|a| a.map(|x| x as f32)))
+            }
+        }
+    };
+    let staircase = axis.map(|a| {
+        let normals = turns.face_normals();
+        staircase_weights_with(mesh, topology, normals, a, &params.staircase_params)
+    });
+    (estimated_axis, axis, staircase)
+}
+
 /// [`context_weights`] in the mesh's own numbering, whatever it is.
 pub fn context_in_mesh_order(
     mesh: &Mesh,
@@ -162,46 +199,33 @@ pub fn context_in_mesh_order(
     references: &[&TriangleBvh],
 ) -> Context {
     let n = mesh.n_vertices();
-    // Face and vertex normals once, for the stack axis, the staircases and the caps.
-    let mut turns = TurnLimits::new(mesh, topology);
-    // The flat-vertex tests of the stack axis and of cap detection's own look, in one walk.
     let axis_params = StackAxisParams::default();
-    let mut limits = vec![(params.cap_params.flat_deg, f32::INFINITY)];
-    if params.staircase && params.axis == AxisChoice::Auto {
-        limits.push((axis_params.flat_deg, axis_params.flat_deg_per_mm));
-        limits.push((axis_params.support_flat_deg, f32::INFINITY));
-    }
-    turns.remember(&limits);
-    // Cap candidates need nothing from the staircases but their reach, applied at the end:
-    // the search (flood fills and growth, partly serial) runs beside the staircase analysis.
-    let ((estimated_axis, axis, staircase), candidates) = rayon::join(
+    // Cap detection's look at a smoothed copy is mostly serial (flood fills, growth): it starts
+    // first, and the stack axis, the staircases and cap detection's look at the mesh itself
+    // (which need nothing from it) fill the other cores meanwhile.
+    let search = CapSearch::new(mesh, topology);
+    let (smoothed_look, ((estimated_axis, axis, staircase), plain_look)) = rayon::join(
+        || search.on_smoothed_copy(mesh, topology, &params.cap_params),
         || {
-            let (estimated_axis, axis) = if !params.staircase {
-                (None, None)
-            } else {
-                match params.axis {
-                    AxisChoice::Given(a) => {
-                        let len = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
-                        (
-                            None,
-                            (len > 0.0 && len.is_finite()).then(|| a.map(|x| x / len)),
-                        )
-                    }
-                    AxisChoice::Auto => {
-                        let est = stack_axis_with(&turns, &axis_params);
-                        (Some(est), est.axis().map(|a| a.map(|x| x as f32)))
-                    }
-                }
-            };
-            let staircase = axis.map(|a| {
-                let normals = turns.face_normals();
-                staircase_weights_with(mesh, topology, normals, a, &params.staircase_params)
-            });
-            (estimated_axis, axis, staircase)
+            // Face and vertex normals once, for the stack axis, the staircases and the caps;
+            // the flat-vertex tests of the stack axis and of the caps' look in one walk.
+            let mut turns = TurnLimits::new(mesh, topology);
+            let mut limits = vec![(params.cap_params.flat_deg, f32::INFINITY)];
+            if params.staircase && params.axis == AxisChoice::Auto {
+                limits.push((axis_params.flat_deg, axis_params.flat_deg_per_mm));
+                limits.push((axis_params.support_flat_deg, f32::INFINITY));
+            }
+            turns.remember(&limits);
+            // Cap candidates need nothing from the staircases but their reach, applied at
+            // the end.
+            rayon::join(
+                || staircases(mesh, topology, &turns, params, &axis_params),
+                || search.on_mesh(&turns, topology, &params.cap_params),
+            )
         },
-        || cap_candidates_with(&turns, topology, &params.cap_params),
     );
-    drop(turns);
+    drop(search);
+    let candidates = CapCandidates::new(plain_look, smoothed_look);
     let reach: Option<Vec<bool>> = staircase
         .as_ref()
         .map(|s| s.distance_mm.iter().map(|d| d.is_finite()).collect());

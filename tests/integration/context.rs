@@ -721,3 +721,36 @@ fn a_scattered_mesh_gets_the_context_of_its_own_order() {
         }
     }
 }
+
+/// The context finds its caps with the looks run side by side with the staircase analysis
+/// (the smoothed copy's first): the same caps as `detect_caps` given the context's own
+/// staircase reach, with one thread and with two.
+#[test]
+fn context_caps_are_the_detected_caps_for_any_thread_count() {
+    let case = rotated("cap-cylinder", 20.0, 35.0);
+    let m = &case.meshes[0].1;
+    let t = Topology::build(m);
+    let params = ContextParams::default();
+    let want = {
+        let ctx = context_weights(m, &t, &params, &[]);
+        let s = ctx
+            .staircase
+            .as_ref()
+            .expect("staircases along the found axis");
+        let reach: Vec<bool> = s.distance_mm.iter().map(|d| d.is_finite()).collect();
+        assert_eq!(
+            ctx.caps,
+            detect_caps(m, &t, Some(&reach), &params.cap_params)
+        );
+        ctx.caps
+    };
+    assert!(want.caps.len() >= 3 && want.n_from_smoothed_copy >= 1);
+    for threads in [1, 2] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let caps = pool.install(|| context_weights(m, &t, &params, &[]).caps);
+        assert_eq!(caps, want, "{threads} threads");
+    }
+}

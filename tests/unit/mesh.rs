@@ -26,7 +26,12 @@ fn rejects_bad_index_and_nan() {
 /// other as it was.
 #[test]
 fn copies_keep_their_own_positions_and_faces() {
-    let p = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    let p = vec![
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+    ];
     let t = vec![[0, 1, 2], [0, 3, 1]];
     let original = Mesh::new(p.clone(), t.clone()).unwrap();
     let mut copy = original.clone();
