@@ -4,7 +4,7 @@
 
 use crate::mesh::geometry::face_and_vertex_normals;
 use crate::mesh::{Mesh, Topology};
-use crate::parallel::deterministic_sum;
+use crate::parallel::REDUCE_BLOCK;
 use rayon::prelude::*;
 
 /// Normal curvature per vertex in degrees; `None` where the vertex has no incident face with
@@ -14,46 +14,67 @@ use rayon::prelude::*;
 /// the widest of a vertex's angles is picked by comparing (cos, sin) pairs
 /// ([`wider_angle`](super::wider_angle)), and only its arctangent is taken.
 pub fn vertex_normal_curvature(mesh: &Mesh, topology: &Topology) -> Vec<Option<f32>> {
-    fold_face_angles(
-        mesh,
-        topology,
-        |widest: Option<(f64, f64)>, _, _, sin, cos| match widest {
-            Some((s, c)) if !super::wider_angle(sin, cos, s, c) => widest,
-            _ => Some((sin, cos)),
-        },
-    )
-    .into_par_iter()
-    .map(|widest| widest.map(|(sin, cos)| sin.atan2(cos).to_degrees() as f32))
-    .collect()
-}
-
-/// Per vertex with a normal, `fold` over its incident faces with area, in order: the vertex,
-/// the face and the sine and cosine of the angle between the two normals. `None` where the vertex normal
-/// cancels out or no face has area.
-fn fold_face_angles<T: Send>(
-    mesh: &Mesh,
-    topology: &Topology,
-    fold: impl Fn(Option<T>, usize, u32, f64, f64) -> Option<T> + Sync,
-) -> Vec<Option<T>> {
-    let (fnormals, vnormals) = face_and_vertex_normals(mesh, topology);
+    let angles = FaceAngles::new(mesh, topology);
     (0..mesh.n_vertices())
         .into_par_iter()
-        .map(|v| {
-            let n = vnormals[v];
-            if n == [0.0; 3] {
-                return None;
-            }
-            let mut acc = None;
-            for &f in topology.vertex_faces(v) {
-                let m = fnormals[f as usize];
-                if m != [0.0; 3] {
-                    let (sin, cos) = sin_cos_between(n, m);
-                    acc = fold(acc, v, f, sin, cos);
-                }
-            }
-            acc
-        })
+        .map(|v| angles.widest_deg(v))
         .collect()
+}
+
+/// A mesh's face and vertex normals, for folds over the angles between each vertex's normal
+/// and its faces'.
+struct FaceAngles<'a> {
+    topology: &'a Topology,
+    fnormals: Vec<[f32; 3]>,
+    vnormals: Vec<[f32; 3]>,
+}
+
+impl<'a> FaceAngles<'a> {
+    fn new(mesh: &Mesh, topology: &'a Topology) -> Self {
+        let (fnormals, vnormals) = face_and_vertex_normals(mesh, topology);
+        FaceAngles {
+            topology,
+            fnormals,
+            vnormals,
+        }
+    }
+
+    /// `fold` over v's incident faces with area, in order: the vertex, the face and the sine
+    /// and cosine of the angle between the two normals. `None` where the vertex normal cancels
+    /// out or no face has area.
+    #[inline]
+    fn fold<T>(
+        &self,
+        v: usize,
+        fold: impl Fn(Option<T>, usize, u32, f64, f64) -> Option<T>,
+    ) -> Option<T> {
+        let n = self.vnormals[v];
+        if n == [0.0; 3] {
+            return None;
+        }
+        let mut acc = None;
+        for &f in self.topology.vertex_faces(v) {
+            let m = self.fnormals[f as usize];
+            if m != [0.0; 3] {
+                let (sin, cos) = sin_cos_between(n, m);
+                acc = fold(acc, v, f, sin, cos);
+            }
+        }
+        acc
+    }
+
+    /// The normal curvature of vertex v (degrees), with one arctangent.
+    #[inline]
+    fn widest_deg(&self, v: usize) -> Option<f32> {
+        let widest = self.fold(
+            v,
+            |widest: Option<(f64, f64)>, _, _, sin, cos| match widest {
+                Some((s, c)) if !super::wider_angle(sin, cos, s, c) => widest,
+                _ => Some((sin, cos)),
+            },
+        );
+        widest.map(|(sin, cos)| sin.atan2(cos).to_degrees() as f32)
+    }
 }
 
 /// How much the surface turns at a vertex: the normal curvature, and the same angle per mm.
@@ -70,29 +91,27 @@ pub struct NormalTurn {
 /// [`NormalTurn`] per vertex; `None` where the normal curvature is undefined.
 pub fn vertex_normal_turn(mesh: &Mesh, topology: &Topology) -> Vec<Option<NormalTurn>> {
     let (p, triangles) = (mesh.positions(), mesh.triangles());
-    fold_face_angles(
-        mesh,
-        topology,
-        |largest: Option<(f64, f64)>, v, f, sin, cos| {
-            // Accurate near 0, unlike the arccosine of the cosine.
-            let angle = sin.atan2(cos);
-            let distance = centroid_distance(p, triangles[f as usize], v);
-            let rate = if distance > 0.0 {
-                angle / distance
-            } else {
-                f64::INFINITY
-            };
-            Some(largest.map_or((angle, rate), |(a, r)| (a.max(angle), r.max(rate))))
-        },
-    )
-    .into_par_iter()
-    .map(|largest| {
-        largest.map(|(a, r)| NormalTurn {
-            deg: a.to_degrees() as f32,
-            deg_per_mm: r.to_degrees() as f32,
+    let angles = FaceAngles::new(mesh, topology);
+    (0..mesh.n_vertices())
+        .into_par_iter()
+        .map(|v| {
+            let largest = angles.fold(v, |largest: Option<(f64, f64)>, v, f, sin, cos| {
+                // Accurate near 0, unlike the arccosine of the cosine.
+                let angle = sin.atan2(cos);
+                let distance = centroid_distance(p, triangles[f as usize], v);
+                let rate = if distance > 0.0 {
+                    angle / distance
+                } else {
+                    f64::INFINITY
+                };
+                Some(largest.map_or((angle, rate), |(a, r)| (a.max(angle), r.max(rate))))
+            });
+            largest.map(|(a, r)| NormalTurn {
+                deg: a.to_degrees() as f32,
+                deg_per_mm: r.to_degrees() as f32,
+            })
         })
-    })
-    .collect()
+        .collect()
 }
 
 /// A mesh's face and vertex normals, to ask which vertices turn within limits (flat-vertex
@@ -269,12 +288,30 @@ fn at_most(x: f32, limit: f32) -> bool {
 
 /// Mean normal curvature in degrees over the vertices where it is defined; 0 if none.
 pub fn average_normal_curvature(mesh: &Mesh, topology: &Topology) -> f64 {
-    let per_vertex = vertex_normal_curvature(mesh, topology);
-    let n_defined = per_vertex.iter().filter(|c| c.is_some()).count();
+    // The blocks and order of `deterministic_sum`, each vertex's curvature found as it is
+    // added (no array of them).
+    let angles = FaceAngles::new(mesh, topology);
+    let n = mesh.n_vertices();
+    let blocks: Vec<(f64, usize)> = (0..n.div_ceil(REDUCE_BLOCK))
+        .into_par_iter()
+        .map(|b| {
+            let mut n_defined = 0;
+            let sum = (b * REDUCE_BLOCK..((b + 1) * REDUCE_BLOCK).min(n))
+                .map(|v| {
+                    angles.widest_deg(v).map_or(0.0, |c| {
+                        n_defined += 1;
+                        f64::from(c)
+                    })
+                })
+                .sum::<f64>();
+            (sum, n_defined)
+        })
+        .collect();
+    let n_defined: usize = blocks.iter().map(|b| b.1).sum();
     if n_defined == 0 {
         return 0.0;
     }
-    let total = deterministic_sum(per_vertex.len(), |v| per_vertex[v].map_or(0.0, f64::from));
+    let total: f64 = blocks.iter().map(|b| b.0).sum();
     total / n_defined as f64
 }
 

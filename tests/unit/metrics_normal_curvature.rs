@@ -150,3 +150,31 @@ fn curvature_matches_the_turn_angles() {
     }
     assert!(wide > 20, "{wide} vertices turn past 90 degrees");
 }
+
+/// The average is the mean of the per-vertex curvatures where defined, summed in the fixed
+/// blocks of `deterministic_sum`: the same bits as summing the per-vertex values.
+#[test]
+fn average_is_the_mean_of_the_vertex_curvatures_to_the_bit() {
+    // About 50,000 vertices (several blocks), jittered, and unreferenced vertices (undefined)
+    // among them.
+    let case = destair::phantom::big_case(100_000, &Default::default());
+    let (mut positions, triangles) = case.meshes[0].1.clone().into_parts();
+    let mut rng = fastrand::Rng::with_seed(5);
+    for x in positions.iter_mut().flatten() {
+        *x += (rng.f32() - 0.5) * 0.2;
+    }
+    positions.extend([[0.0, 0.0, 0.0]; 100]);
+    let mesh = Mesh::new(positions, triangles).unwrap();
+    let topology = Topology::build(&mesh);
+    let per_vertex = vertex_normal_curvature(&mesh, &topology);
+    let n_defined = per_vertex.iter().flatten().count();
+    assert!(per_vertex.len() > 3 * 16_384 && n_defined + 100 == per_vertex.len());
+    let total = destair::parallel::deterministic_sum(per_vertex.len(), |v| {
+        per_vertex[v].map_or(0.0, f64::from)
+    });
+    let want = total / n_defined as f64;
+    assert_eq!(
+        average_normal_curvature(&mesh, &topology).to_bits(),
+        want.to_bits()
+    );
+}
