@@ -9,6 +9,7 @@ use crate::mesh::Mesh;
 use crate::parallel::split_lengths;
 use rayon::prelude::*;
 use std::ops::Range;
+use std::sync::OnceLock;
 
 /// Vertices per parallel block when a CSR array is split among threads.
 const VERTEX_BLOCK: usize = 8192;
@@ -37,12 +38,13 @@ pub struct Topology {
     inconsistent_edges: Vec<u32>,
     degenerate_triangles: Vec<u32>,
     unreferenced_vertices: Vec<u32>,
-    vertex_component: Vec<u32>,
-    n_components: usize,
+    /// Connected components, found on first request (most analyses never ask).
+    components: OnceLock<(Vec<u32>, usize)>,
 }
 
 impl Topology {
-    /// Builds all adjacency and findings; O(F log valence), parallel where it pays.
+    /// Builds all adjacency and findings (connected components on first request); O(F log
+    /// valence), parallel where it pays.
     pub fn build(mesh: &Mesh) -> Topology {
         let n = mesh.n_vertices();
         let tris = mesh.triangles();
@@ -101,7 +103,6 @@ impl Topology {
             .filter(|&v| vf_offsets[v] == vf_offsets[v + 1])
             .map(|v| v as u32)
             .collect();
-        let (vertex_component, n_components) = components(n, &edges, &vf_offsets);
         let boundary_loops = boundary_loops(&boundary_edges);
 
         Topology {
@@ -117,8 +118,7 @@ impl Topology {
             inconsistent_edges,
             degenerate_triangles,
             unreferenced_vertices,
-            vertex_component,
-            n_components,
+            components: OnceLock::new(),
         }
     }
 
@@ -191,12 +191,18 @@ impl Topology {
 
     /// Component index per vertex (numbered by smallest vertex), `u32::MAX` if unreferenced.
     pub fn vertex_component(&self) -> &[u32] {
-        &self.vertex_component
+        &self.components().0
     }
 
     /// Number of edge-connected components among referenced vertices.
     pub fn n_components(&self) -> usize {
-        self.n_components
+        self.components().1
+    }
+
+    /// The components, found once (a serial union-find over every edge).
+    fn components(&self) -> &(Vec<u32>, usize) {
+        self.components
+            .get_or_init(|| components(self.n_vertices(), &self.edges, &self.vf_offsets))
     }
 
     /// Whether every edge has two triangles, consistently oriented, and every vertex one fan.
