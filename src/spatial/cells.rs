@@ -83,7 +83,10 @@ impl TriangleCells {
             .map(|a| lo[a].abs().max(hi[a].abs()))
             .fold(cell, f64::max);
         let near_listed = dilate(
-            (0..n_cells).map(|c| offsets[c] < offsets[c + 1]).collect(),
+            (0..n_cells)
+                .into_par_iter()
+                .map(|c| offsets[c] < offsets[c + 1])
+                .collect(),
             dims,
         );
         TriangleCells {
@@ -291,25 +294,63 @@ fn cell_lists(
 }
 
 /// `listed` (one flag per cell of a grid of `dims`) widened by one cell along every axis in
-/// turn: a cell's result is set when any cell of its 3 x 3 x 3 block is.
+/// turn: a cell's result is set when any cell of its 3 x 3 x 3 block is. Each pass ORs whole
+/// rows or planes shifted by one cell (no branch per cell), planes in parallel.
 fn dilate(listed: Vec<bool>, dims: [usize; 3]) -> Vec<bool> {
-    let [nx, ny, nz] = dims;
+    let [nx, ny, _] = dims;
     let plane = nx * ny;
-    let (mut from, mut to) = (listed, vec![false; plane * nz]);
-    for a in 0..3 {
-        let from_ref = &from;
-        to.par_chunks_mut(plane).enumerate().for_each(|(k, out)| {
-            for j in 0..ny {
-                for i in 0..nx {
-                    let c = (k * ny + j) * nx + i;
-                    let (x, len, stride) = [(i, nx, 1), (j, ny, nx), (k, nz, plane)][a];
-                    out[j * nx + i] = from_ref[c]
-                        || (x > 0 && from_ref[c - stride])
-                        || (x + 1 < len && from_ref[c + stride]);
-                }
+    if plane == 0 {
+        return listed;
+    }
+    // Along x, within each row.
+    let mut along_x = listed.clone();
+    along_x
+        .par_chunks_mut(plane)
+        .zip(listed.par_chunks(plane))
+        .for_each(|(out, src)| {
+            for (o, s) in out.chunks_mut(nx).zip(src.chunks(nx)) {
+                or_shifted(o, s);
             }
         });
-        std::mem::swap(&mut from, &mut to);
+    // Along y, within each plane: rows ORed with the rows before and after.
+    let mut along_y = along_x.clone();
+    along_y
+        .par_chunks_mut(plane)
+        .zip(along_x.par_chunks(plane))
+        .for_each(|(out, src)| {
+            if ny > 1 {
+                or_into(&mut out[nx..], &src[..plane - nx]);
+                or_into(&mut out[..plane - nx], &src[nx..]);
+            }
+        });
+    // Along z: planes ORed with the planes before and after.
+    let mut along_z = along_y.clone();
+    let from = &along_y;
+    along_z
+        .par_chunks_mut(plane)
+        .enumerate()
+        .for_each(|(k, out)| {
+            if k > 0 {
+                or_into(out, &from[(k - 1) * plane..k * plane]);
+            }
+            if let Some(next) = from.get((k + 1) * plane..(k + 2) * plane) {
+                or_into(out, next);
+            }
+        });
+    along_z
+}
+
+/// `out[i] |= src[i]`.
+fn or_into(out: &mut [bool], src: &[bool]) {
+    for (o, &s) in out.iter_mut().zip(src) {
+        *o |= s;
     }
-    from
+}
+
+/// `out[i] |= src[i - 1] | src[i + 1]` where those exist (`out` starts as a copy of `src`).
+fn or_shifted(out: &mut [bool], src: &[bool]) {
+    if src.len() > 1 {
+        or_into(&mut out[1..], &src[..src.len() - 1]);
+        or_into(&mut out[..src.len() - 1], &src[1..]);
+    }
 }
