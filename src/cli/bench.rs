@@ -156,10 +156,11 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
                     "    {:<9} {:.4} s{}  largest difference {:.1e} mm",
                     t.numbering,
                     t.seconds,
-                    if t.renumbered {
-                        " (scattered: run in scanline order)"
-                    } else {
-                        ""
+                    match t.renumbering_seconds {
+                        Some(r) => format!(
+                            " (scattered: run in scanline order, renumbering and back {r:.4} s of it)"
+                        ),
+                        None => String::new(),
                     },
                     t.max_difference_mm
                 );
