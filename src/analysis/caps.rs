@@ -481,7 +481,8 @@ fn caps_of(
         }
     }
     // A grown region's verdict depends only on its faces (a face goes to the first region
-    // that reaches it), so all regions are grown first, then examined side by side (a large one with its large steps in parallel too) and counted in order.
+    // that reaches it), so all regions are grown first, then examined side by side (a large
+    // one with its large steps in parallel too) and counted in order.
     let scratch_pool = std::sync::Mutex::new(Vec::new());
     let verdicts: Vec<Verdict> = kept
         .par_iter()
