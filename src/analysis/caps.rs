@@ -17,6 +17,7 @@
 //! smoothed by 10 Laplace iterations, where it is flat (the faces, not the positions, are
 //! what the copy contributes).
 
+use crate::mesh::face_neighbours::FaceNeighbours;
 use crate::mesh::geometry::triangle_area_vector;
 use crate::mesh::umbrella::{copied, padded, umbrella_pass, unpadded, NeighbourLists};
 use crate::mesh::{Mesh, Topology};
@@ -127,85 +128,7 @@ fn angle_deg(a: [f32; 3], b: [f32; 3]) -> f32 {
         .to_degrees()
 }
 
-/// Edge neighbours of every face, found once for both looks (the smoothed copy has the same
-/// faces): up to three per face, padded with `NONE`; a face on a non-manifold edge is marked and
-/// looked up again when visited.
-struct FaceNeighbours {
-    three: Vec<[u32; 3]>,
-    more: Vec<bool>,
-}
-
 const NONE: u32 = u32::MAX;
-
-impl FaceNeighbours {
-    fn build(mesh: &Mesh, topology: &Topology) -> Self {
-        (0..mesh.n_triangles() as u32)
-            .into_par_iter()
-            .map_init(Vec::new, |scratch, f| {
-                edge_neighbours(mesh, topology, f, scratch);
-                let mut three = [NONE; 3];
-                if scratch.len() > 3 {
-                    return (three, true);
-                }
-                three[..scratch.len()].copy_from_slice(scratch);
-                (three, false)
-            })
-            .unzip()
-            .into()
-    }
-
-    fn of(&self, mesh: &Mesh, topology: &Topology, f: u32, out: &mut Vec<u32>) {
-        if self.more[f as usize] {
-            edge_neighbours(mesh, topology, f, out);
-        } else {
-            out.clear();
-            out.extend(self.three[f as usize].iter().filter(|&&g| g != NONE));
-        }
-    }
-}
-
-impl From<(Vec<[u32; 3]>, Vec<bool>)> for FaceNeighbours {
-    fn from((three, more): (Vec<[u32; 3]>, Vec<bool>)) -> Self {
-        Self { three, more }
-    }
-}
-
-/// Faces sharing an edge with face `f` (through the vertex->face CSR; no extra table): for
-/// each edge in turn, in ascending order. The faces around the first corner give the first and
-/// the last edge's neighbours, those around the second the middle edge's.
-pub fn edge_neighbours(mesh: &Mesh, topology: &Topology, f: u32, out: &mut Vec<u32>) {
-    out.clear();
-    let tris = mesh.triangles();
-    let [a, b, c] = tris[f as usize];
-    // The last edge's neighbours wait here (rarely more than one).
-    let mut last: [u32; 4] = [NONE; 4];
-    let mut n_last = 0;
-    let mut last_more: Vec<u32> = Vec::new();
-    for &g in topology.vertex_faces(a as usize) {
-        if g == f {
-            continue;
-        }
-        let t = tris[g as usize];
-        if t.contains(&b) {
-            out.push(g);
-        }
-        if t.contains(&c) {
-            if n_last < last.len() {
-                last[n_last] = g;
-                n_last += 1;
-            } else {
-                last_more.push(g);
-            }
-        }
-    }
-    for &g in topology.vertex_faces(b as usize) {
-        if g != f && tris[g as usize].contains(&c) {
-            out.push(g);
-        }
-    }
-    out.extend_from_slice(&last[..n_last]);
-    out.extend_from_slice(&last_more);
-}
 
 /// Detects caps. `staircase_reach` (one flag per vertex: within tau_max of a staircase vertex
 /// along the surface) enables the staircase-border check.

@@ -4,6 +4,7 @@
 //! algorithm downstream can index without checks. Topology is built once, separately
 //! ([`Topology::build`]), because many callers (writers, converters) never need it.
 
+pub mod face_neighbours;
 pub mod geometry;
 pub mod manifold;
 pub mod order;

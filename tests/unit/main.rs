@@ -1,6 +1,5 @@
 //! Tests of single modules through the library's public API.
 
-mod analysis_caps;
 mod analysis_voxel_size;
 mod extract_noise;
 mod extract_thin;
@@ -20,6 +19,7 @@ mod job_paths;
 mod job_plan;
 mod job_settings;
 mod mesh;
+mod mesh_face_neighbours;
 mod mesh_geometry;
 mod mesh_manifold;
 mod mesh_order;

@@ -1,6 +1,6 @@
-//! Tests of `src/analysis/caps.rs`.
+//! Tests of `src/mesh/face_neighbours.rs`.
 
-use destair::analysis::caps::*;
+use destair::mesh::face_neighbours::*;
 use destair::mesh::{Mesh, Topology};
 
 /// Faces sharing each edge of `f`, edge by edge, found by comparing every face.
