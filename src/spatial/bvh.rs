@@ -102,23 +102,32 @@ pub fn leaf_disk(corners: &[[[f32; 3]; 3]]) -> ([f32; 3], [f32; 3], f32, f32) {
     (c, n, up(r), up(t))
 }
 
-/// Squared distance (mm^2) from `q` to lane `k`'s disk, a lower bound of its leaf's
-/// distance as [`reach2`] needs one: a point of the leaf is at most `t` off the plane and at
+/// Squared distances (mm^2) from `q` to the four lanes' disks, lower bounds of their leaves'
+/// distances as [`reach2`] needs them: a point of a leaf is at most `t` off the plane and at
 /// most `r` from the centre, so its distance is at least the plane gap less `t` and the
-/// in-plane gap less `r`. In f64 from f32 inputs, the gaps shrunk by far more than the
-/// stored normal's rounding can move them (1e-6 and 1e-3 of the offset's 1-norm), the square
-/// by 1e-9 before rounding to f32.
+/// in-plane gap less `r`. In f32, all four lanes at once; the gaps are shrunk by far more
+/// than rounding and the stored normal's error can move them (the plane gap's error is
+/// below 4e-7 of the offset's 1-norm, the in-plane gap's, a square root of a difference of
+/// squares, below 1.1e-3 of it; margins 2e-6 and 2e-3), the square by 1e-6.
 #[inline]
-pub fn disk_distance2(q: [f32; 3], d: &Disks, k: usize) -> f32 {
-    let w: [f64; 3] = std::array::from_fn(|a| f64::from(q[a]) - f64::from(d.c[a][k]));
-    let n: [f64; 3] = std::array::from_fn(|a| f64::from(d.n[a][k]));
-    let h = dot(w, n);
-    let ww = dot(w, w);
-    let w1 = w[0].abs() + w[1].abs() + w[2].abs();
-    let rho = (ww - h * h).max(0.0).sqrt();
-    let off_plane = (h.abs() - f64::from(d.t[k]) - 1e-6 * w1).max(0.0);
-    let in_plane = (rho - f64::from(d.r[k]) - 1e-3 * w1).max(0.0);
-    ((off_plane * off_plane + in_plane * in_plane) * (1.0 - 1e-9)) as f32
+pub fn disk_distances2(q: [f32; 3], d: &Disks) -> [f32; 4] {
+    let mut h = [0.0f32; 4];
+    let mut ww = [0.0f32; 4];
+    let mut w1 = [0.0f32; 4];
+    for a in 0..3 {
+        for k in 0..4 {
+            let w = q[a] - d.c[a][k];
+            h[k] += w * d.n[a][k];
+            ww[k] += w * w;
+            w1[k] += w.abs();
+        }
+    }
+    std::array::from_fn(|k| {
+        let rho = max(ww[k] - h[k] * h[k], 0.0).sqrt();
+        let off_plane = max(h[k].abs() - d.t[k] - 2e-6 * w1[k], 0.0);
+        let in_plane = max(rho - d.r[k] - 2e-3 * w1[k], 0.0);
+        (off_plane * off_plane + in_plane * in_plane) * (1.0 - 1e-6)
+    })
 }
 
 /// The nearest point of a surface to a query point.
@@ -418,6 +427,12 @@ impl Tree {
             }
             let node = &self.nodes[child as usize];
             let gaps = box_distances2(p, &node.lo, &node.hi);
+            // A leaf's disk bounds it more tightly than its box from afar.
+            let disks = if node.count == [0; 4] {
+                [0.0; 4]
+            } else {
+                disk_distances2(p, &self.disks[child as usize])
+            };
             // The children in reach, nearest pushed last (searched first).
             let mut hits = [(0u32, 0u32, 0.0f32); 4];
             let mut n_hits = 0;
@@ -425,14 +440,14 @@ impl Tree {
                 // An unused slot's box is empty (infinitely far), which an infinite reach
                 // would still take.
                 if gap <= best.reach && node.child[k] != NO_CHILD {
-                    // A leaf's disk bounds it more tightly than its box from afar.
-                    let mut gap = gap;
-                    if node.count[k] > 0 {
-                        let disk = disk_distance2(p, &self.disks[child as usize], k);
-                        if disk > best.reach {
-                            continue;
-                        }
-                        gap = gap.max(disk);
+                    // Only a leaf has a disk.
+                    let gap = if node.count[k] > 0 {
+                        max(gap, disks[k])
+                    } else {
+                        gap
+                    };
+                    if gap > best.reach {
+                        continue;
                     }
                     let mut at = n_hits;
                     // Insertion by decreasing distance; equal distances keep slot order.

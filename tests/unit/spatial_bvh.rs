@@ -81,7 +81,7 @@ fn a_leaf_disk_bounds_its_triangles_from_below() {
             let q: [f32; 3] = std::array::from_fn(|a| {
                 c[a] + (rng.f32() - 0.5) * 2.0 * reach + if a == 2 { reach } else { 0.0 }
             });
-            let bound = f64::from(disk_distance2(q, &disks, k));
+            let bound = f64::from(disk_distances2(q, &disks)[k]);
             for tri in &leaf {
                 let d2 = point_triangle_distance2(q, *tri);
                 assert!(
