@@ -5,29 +5,31 @@ use crate::parallel::deterministic_sum;
 use rayon::prelude::*;
 use serde::Serialize;
 
-/// Smallest interior angle over all triangles, in degrees (0 for degenerate triangles). Each
-/// triangle's smallest corner is picked by comparing (cos, sin) pairs
-/// ([`wider_angle`](super::wider_angle)) and only its arctangent is taken: the value
-/// [`min_triangle_angle_of_every_corner`] gives, with a third of the arctangents.
+/// Smallest interior angle over all triangles, in degrees (0 for degenerate triangles). The
+/// narrowest corner is picked by comparing (cos, sin) pairs ([`wider_angle`](super::wider_angle),
+/// which never contradicts the arctangents) and only its arctangent is taken: the value
+/// [`min_triangle_angle_of_every_corner`] gives, with one arctangent in all.
 pub fn min_triangle_angle(mesh: &Mesh) -> f64 {
     let p = mesh.positions();
-    mesh.triangles()
+    let narrower = |a: (f64, f64), b: (f64, f64)| {
+        if super::wider_angle(a.0, a.1, b.0, b.1) {
+            b
+        } else {
+            a
+        }
+    };
+    // 180 degrees: wider than any corner.
+    let (sin, cos) = mesh
+        .triangles()
         .par_iter()
         .map(|t| {
             let q = t.map(|v| p[v as usize].map(f64::from));
-            let (sin, cos) =
-                (1..3)
-                    .map(|k| corner_sin_cos(q, k))
-                    .fold(corner_sin_cos(q, 0), |a, b| {
-                        if super::wider_angle(a.0, a.1, b.0, b.1) {
-                            b
-                        } else {
-                            a
-                        }
-                    });
-            sin.atan2(cos).to_degrees()
+            (1..3)
+                .map(|k| corner_sin_cos(q, k))
+                .fold(corner_sin_cos(q, 0), narrower)
         })
-        .reduce(|| 180.0, f64::min)
+        .reduce(|| (0.0, -1.0), narrower);
+    sin.atan2(cos).to_degrees()
 }
 
 /// [`min_triangle_angle`] with an arctangent at every corner: the reference it must equal.

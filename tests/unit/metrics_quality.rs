@@ -76,6 +76,7 @@ mod shape_tests {
         let p = mesh.positions();
         let mut rng = fastrand::Rng::with_seed(3);
         let mut checked = 0;
+        let mut all = Vec::new();
         for t in mesh.triangles().iter().step_by(3) {
             let mut q = t.map(|v| p[v as usize]);
             match rng.u8(..6) {
@@ -94,6 +95,7 @@ mod shape_tests {
                 }
                 _ => {}
             }
+            all.push(q);
             let one = Mesh::new(q.to_vec(), vec![[0, 1, 2]]).unwrap();
             assert_eq!(
                 min_triangle_angle(&one).to_bits(),
@@ -103,10 +105,37 @@ mod shape_tests {
             checked += 1;
         }
         assert!(checked > 5000);
-        assert_eq!(
-            min_triangle_angle(mesh).to_bits(),
-            min_triangle_angle_of_every_corner(mesh).to_bits()
-        );
+        // Whole meshes: the pick across triangles too, with and without the degenerate ones
+        // (whose zero angle is the smallest).
+        let jittered = Mesh::new(
+            all.iter().flatten().copied().collect(),
+            (0..all.len() as u32)
+                .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+                .collect(),
+        )
+        .unwrap();
+        let sound: Vec<[[f32; 3]; 3]> = all
+            .iter()
+            .copied()
+            .filter(|q| {
+                let one = Mesh::new(q.to_vec(), vec![[0, 1, 2]]).unwrap();
+                min_triangle_angle_of_every_corner(&one) > 0.0
+            })
+            .collect();
+        let sound = Mesh::new(
+            sound.iter().flatten().copied().collect(),
+            (0..sound.len() as u32)
+                .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+                .collect(),
+        )
+        .unwrap();
+        for m in [mesh, &jittered, &sound] {
+            assert_eq!(
+                min_triangle_angle(m).to_bits(),
+                min_triangle_angle_of_every_corner(m).to_bits()
+            );
+        }
+        assert!(min_triangle_angle(&sound) > 0.0);
     }
 
     /// `wider_angle` never orders two directions against their arctangents, ties and zero vectors
