@@ -17,6 +17,8 @@ pub struct TriangleCells {
     pub origin: [f64; 3],
     /// Cell width (mm).
     pub cell: f64,
+    /// Its reciprocal (cells per mm): a cell is found by a multiplication, not a division.
+    per_cell: f64,
     /// Cells along x, y, z.
     pub dims: [usize; 3],
     /// Per cell, where its triangles start in the list (CSR, one more than the cells).
@@ -36,39 +38,53 @@ impl TriangleCells {
             return TriangleCells::default();
         }
         let n = triangles.len();
-        let (lo, hi, edge_sum) = triangles
+        // The box, exactly (f32 minima and maxima), from every corner.
+        let (lo, hi) = triangles
             .par_iter()
             .fold(
-                || ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3], 0.0f64),
-                |(mut lo, mut hi, mut sum), t| {
-                    for (k, q) in t.iter().enumerate() {
+                || ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
+                |(mut lo, mut hi), t| {
+                    for q in t {
                         for a in 0..3 {
-                            lo[a] = lo[a].min(q[a] as f64);
-                            hi[a] = hi[a].max(q[a] as f64);
+                            lo[a] = super::min(lo[a], q[a]);
+                            hi[a] = super::max(hi[a], q[a]);
                         }
-                        let r = t[(k + 1) % 3];
-                        sum += (0..3)
-                            .map(|a| (q[a] as f64 - r[a] as f64).powi(2))
-                            .sum::<f64>()
-                            .sqrt();
                     }
-                    (lo, hi, sum)
+                    (lo, hi)
                 },
             )
             .reduce(
-                || ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3], 0.0),
-                |(l1, h1, s1), (l2, h2, s2)| {
+                || ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
+                |(l1, h1), (l2, h2)| {
                     (
-                        std::array::from_fn(|a| l1[a].min(l2[a])),
-                        std::array::from_fn(|a| h1[a].max(h2[a])),
-                        s1 + s2,
+                        std::array::from_fn(|a| super::min(l1[a], l2[a])),
+                        std::array::from_fn(|a| super::max(h1[a], h2[a])),
                     )
                 },
             );
+        let (lo, hi) = (lo.map(f64::from), hi.map(f64::from));
+        // The mean edge length sets the cell size, which only tunes the speed of queries (not
+        // their answers): estimated from an even sample of at most 2^16 triangles.
+        let stride = n.div_ceil(1 << 16);
+        let (edge_sum, sampled) =
+            triangles
+                .iter()
+                .step_by(stride)
+                .fold((0.0f64, 0usize), |(sum, count), t| {
+                    let length = |k: usize| {
+                        let (q, r) = (t[k], t[(k + 1) % 3]);
+                        (0..3)
+                            .map(|a| (q[a] as f64 - r[a] as f64).powi(2))
+                            .sum::<f64>()
+                            .sqrt()
+                    };
+                    (sum + length(0) + length(1) + length(2), count + 1)
+                });
         let extent: [f64; 3] = std::array::from_fn(|a| (hi[a] - lo[a]).max(0.0));
-        let (cell, dims) = super::grid_cells(extent, 2.0 * edge_sum / (3 * n) as f64, n);
-        // A cast truncates as floor does at and above 0 and gives 0 below, as the clamp does.
-        let cell_of = |x: f64, a: usize| (((x - lo[a]) / cell) as usize).min(dims[a] - 1);
+        let (cell, dims) = super::grid_cells(extent, 2.0 * edge_sum / (3 * sampled) as f64, n);
+        let per_cell = 1.0 / cell;
+        // As `TriangleCells::cell_of`.
+        let cell_of = |x: f64, a: usize| (((x - lo[a]) * per_cell) as usize).min(dims[a] - 1);
         // The cells a triangle's box overlaps: lowest and highest along each axis.
         let range = |t: &[[f32; 3]; 3]| -> CellBox {
             let (mn, mx) = super::triangle_box(t);
@@ -92,6 +108,7 @@ impl TriangleCells {
         TriangleCells {
             origin: lo,
             cell,
+            per_cell,
             dims,
             offsets,
             ids,
@@ -116,10 +133,12 @@ impl TriangleCells {
         inside && self.near_listed[(at[2] * self.dims[1] + at[1]) * self.dims[0] + at[0]]
     }
 
-    /// The cell index of coordinate `x` along axis `a`, clamped to the grid.
+    /// The cell index of coordinate `x` along axis `a`, clamped to the grid. By the
+    /// reciprocal of the width, which may put a point within rounding of a wall on its other
+    /// side: the walls' distances are taken less a slack far above that.
     fn cell_of(&self, x: f64, a: usize) -> usize {
         // Truncation is floor at and above 0; below, both end at cell 0 (NaN too).
-        (((x - self.origin[a]) / self.cell) as usize).min(self.dims[a] - 1)
+        (((x - self.origin[a]) * self.per_cell) as usize).min(self.dims[a] - 1)
     }
 
     /// Visits the cells of ring `ring` around the cell of `p` (the nearest cell for a point
@@ -295,41 +314,40 @@ fn cell_lists(
 
 /// `listed` (one flag per cell of a grid of `dims`) widened by one cell along every axis in
 /// turn: a cell's result is set when any cell of its 3 x 3 x 3 block is. Each pass ORs whole
-/// rows or planes shifted by one cell (no branch per cell), planes in parallel.
-fn dilate(listed: Vec<bool>, dims: [usize; 3]) -> Vec<bool> {
+/// rows or planes shifted by one cell (no branch per cell), planes in parallel: along x and y
+/// within each plane (through one plane of scratch per worker), then along z into `listed`'s
+/// own buffer.
+fn dilate(mut listed: Vec<bool>, dims: [usize; 3]) -> Vec<bool> {
     let [nx, ny, _] = dims;
     let plane = nx * ny;
     if plane == 0 {
         return listed;
     }
-    // Along x, within each row.
-    let mut along_x = listed.clone();
-    along_x
+    let mut along_xy = vec![false; listed.len()];
+    along_xy
         .par_chunks_mut(plane)
         .zip(listed.par_chunks(plane))
-        .for_each(|(out, src)| {
-            for (o, s) in out.chunks_mut(nx).zip(src.chunks(nx)) {
+        .for_each_init(Vec::new, |along_x, (out, src)| {
+            // Along x, within each row.
+            along_x.clear();
+            along_x.extend_from_slice(src);
+            for (o, s) in along_x.chunks_mut(nx).zip(src.chunks(nx)) {
                 or_shifted(o, s);
             }
-        });
-    // Along y, within each plane: rows ORed with the rows before and after.
-    let mut along_y = along_x.clone();
-    along_y
-        .par_chunks_mut(plane)
-        .zip(along_x.par_chunks(plane))
-        .for_each(|(out, src)| {
+            // Along y: rows ORed with the rows before and after.
+            out.copy_from_slice(along_x);
             if ny > 1 {
-                or_into(&mut out[nx..], &src[..plane - nx]);
-                or_into(&mut out[..plane - nx], &src[nx..]);
+                or_into(&mut out[nx..], &along_x[..plane - nx]);
+                or_into(&mut out[..plane - nx], &along_x[nx..]);
             }
         });
     // Along z: planes ORed with the planes before and after.
-    let mut along_z = along_y.clone();
-    let from = &along_y;
-    along_z
+    let from = &along_xy;
+    listed
         .par_chunks_mut(plane)
         .enumerate()
         .for_each(|(k, out)| {
+            out.copy_from_slice(&from[k * plane..(k + 1) * plane]);
             if k > 0 {
                 or_into(out, &from[(k - 1) * plane..k * plane]);
             }
@@ -337,7 +355,7 @@ fn dilate(listed: Vec<bool>, dims: [usize; 3]) -> Vec<bool> {
                 or_into(out, next);
             }
         });
-    along_z
+    listed
 }
 
 /// `out[i] |= src[i]`.
