@@ -114,9 +114,9 @@ pub fn disk_distances2(q: [f32; 3], d: &Disks) -> [f32; 4] {
     let mut h = [0.0f32; 4];
     let mut ww = [0.0f32; 4];
     let mut w1 = [0.0f32; 4];
-    for a in 0..3 {
+    for (a, &x) in q.iter().enumerate() {
         for k in 0..4 {
-            let w = q[a] - d.c[a][k];
+            let w = x - d.c[a][k];
             h[k] += w * d.n[a][k];
             ww[k] += w * w;
             w1[k] += w.abs();
