@@ -57,23 +57,50 @@ impl Topology {
             .collect();
         let valid = |t: &[u32; 3]| !is_degenerate(t);
 
-        // Vertex -> face CSR, faces ascending per vertex.
+        // Vertex -> face CSR, faces ascending per vertex. A few ranges of vertices side by
+        // side, each reading every triangle for the corners it owns: its counts and faces land
+        // in its own stretch of the arrays (no atomics), in triangle order.
+        let ranges: Vec<Range<usize>> = {
+            let parts = rayon::current_num_threads().clamp(1, 4);
+            (0..parts)
+                .map(|i| i * n / parts..(i + 1) * n / parts)
+                .collect()
+        };
         let mut vf_offsets = vec![0u32; n + 1];
-        for t in tris.iter().filter(|t| valid(t)) {
-            for &v in t {
-                vf_offsets[v as usize + 1] += 1;
-            }
-        }
+        split_lengths(ranges.iter().map(|r| r.len()), &mut vf_offsets[1..])
+            .into_par_iter()
+            .zip(&ranges)
+            .for_each(|(counts, range)| {
+                for t in tris.iter().filter(|t| valid(t)) {
+                    for &v in t {
+                        if range.contains(&(v as usize)) {
+                            counts[v as usize - range.start] += 1;
+                        }
+                    }
+                }
+            });
         prefix_sum(&mut vf_offsets);
-        let mut cursor: Vec<u32> = vf_offsets[..n].to_vec();
         let mut vf_faces = vec![0u32; vf_offsets[n] as usize];
-        for (f, t) in tris.iter().enumerate().filter(|(_, t)| valid(t)) {
-            for &v in t {
-                let c = &mut cursor[v as usize];
-                vf_faces[*c as usize] = f as u32;
-                *c += 1;
-            }
-        }
+        let stretch = |r: &Range<usize>| (vf_offsets[r.end] - vf_offsets[r.start]) as usize;
+        split_lengths(ranges.iter().map(stretch), &mut vf_faces)
+            .into_par_iter()
+            .zip(&ranges)
+            .for_each(|(faces, range)| {
+                let base = vf_offsets[range.start];
+                let mut cursor: Vec<u32> = vf_offsets[range.clone()]
+                    .iter()
+                    .map(|&o| o - base)
+                    .collect();
+                for (f, t) in tris.iter().enumerate().filter(|(_, t)| valid(t)) {
+                    for &v in t {
+                        if range.contains(&(v as usize)) {
+                            let c = &mut cursor[v as usize - range.start];
+                            faces[*c as usize] = f as u32;
+                            *c += 1;
+                        }
+                    }
+                }
+            });
 
         // One parallel sweep over vertex blocks: each vertex gathers the spokes of its faces,
         // which give its sorted neighbours, the edges it owns (those to larger vertices) with

@@ -1,5 +1,5 @@
 //! Topology against a brute-force reference on random triangle sets (non-manifold, flipped,
-//! degenerate and unreferenced cases included), and identical results for 1 and 2 threads.
+//! degenerate and unreferenced cases included), and identical results for 1 to 4 threads.
 
 use destair::mesh::topology::BoundaryLoop;
 use destair::{Mesh, Topology};
@@ -144,7 +144,7 @@ fn matches_brute_force_on_random_meshes() {
 }
 
 #[test]
-fn identical_for_one_and_two_threads() {
+fn identical_for_one_to_four_threads() {
     let mesh = destair::bench::shuffled(&destair::bench::torus(300, 120), 3);
     let build = |threads| {
         rayon::ThreadPoolBuilder::new()
@@ -153,7 +153,11 @@ fn identical_for_one_and_two_threads() {
             .unwrap()
             .install(|| {
                 let t = Topology::build(&mesh);
+                let vertex_faces: Vec<Vec<u32>> = (0..mesh.n_vertices())
+                    .map(|v| t.vertex_faces(v).to_vec())
+                    .collect();
                 (
+                    vertex_faces,
                     t.neighbor_csr().0.to_vec(),
                     t.neighbor_csr().1.to_vec(),
                     t.edges().to_vec(),
@@ -163,5 +167,9 @@ fn identical_for_one_and_two_threads() {
                 )
             })
     };
-    assert_eq!(build(1), build(2));
+    let one = build(1);
+    assert_eq!(one, build(2));
+    // Three and four vertex ranges for the vertex->face lists.
+    assert_eq!(one, build(3));
+    assert_eq!(one, build(4));
 }
