@@ -21,6 +21,17 @@ pub struct SurfaceDistance {
     pub mean_mm: f64,
 }
 
+/// Per vertex, the lowest-numbered face it is a corner of (`u32::MAX` for none).
+fn a_face_per_vertex(mesh: &Mesh) -> Vec<u32> {
+    let mut face = vec![u32::MAX; mesh.n_vertices()];
+    for (f, t) in (0..mesh.n_triangles() as u32).zip(mesh.triangles()).rev() {
+        for &v in t {
+            face[v as usize] = f;
+        }
+    }
+    face
+}
+
 fn max_and_sum(d: &[f64]) -> (f64, f64) {
     let max = d.iter().cloned().fold(0.0, f64::max);
     (max, deterministic_sum(d.len(), |i| d[i]))
@@ -34,8 +45,20 @@ pub fn surface_distance(
     b: &Mesh,
     tree_b: &TriangleBvh,
 ) -> SurfaceDistance {
-    let ab = tree_b.distances(a.positions());
-    let ba = tree_a.distances(b.positions());
+    // A smoothed copy with the same triangles: each vertex's search starts from one of its
+    // own faces in the other mesh, which is close to its nearest point there.
+    let (ab, ba) = if a.n_vertices() == b.n_vertices() && a.triangles() == b.triangles() {
+        let faces = a_face_per_vertex(a);
+        (
+            tree_b.distances_from(a.positions(), &faces),
+            tree_a.distances_from(b.positions(), &faces),
+        )
+    } else {
+        (
+            tree_b.distances(a.positions()),
+            tree_a.distances(b.positions()),
+        )
+    };
     let (ab_max, ab_sum) = max_and_sum(&ab);
     let (ba_max, ba_sum) = max_and_sum(&ba);
     let mean = |sum: f64, n: usize| if n == 0 { 0.0 } else { sum / n as f64 };

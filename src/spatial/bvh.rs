@@ -352,6 +352,21 @@ impl TriangleBvh {
             .collect()
     }
 
+    /// [`TriangleBvh::distances`], the search for `points[i]` starting from triangle
+    /// `guesses[i]` (none where that is missing or out of range): the same answers, found
+    /// sooner when the guesses are close (a vertex's own faces, for a smoothed copy of the
+    /// mesh with the same triangles).
+    pub fn distances_from(&self, points: &[[f32; 3]], guesses: &[u32]) -> Vec<f64> {
+        points
+            .par_iter()
+            .enumerate()
+            .map(|(i, &p)| {
+                self.nearest_from(p, f64::INFINITY, guesses.get(i).copied(), &|_| true)
+                    .map_or(f64::INFINITY, |n| n.distance)
+            })
+            .collect()
+    }
+
     /// The triangle nearest to `p` among those `keep` accepts and no further than `within`
     /// (mm), with its distance; ties go to the lower index. A search that only needs to beat
     /// a known distance stops there.
@@ -361,10 +376,26 @@ impl TriangleBvh {
         within: f64,
         keep: impl Fn(u32) -> bool,
     ) -> Option<Nearest> {
+        self.nearest_from(p, within, None, &keep)
+    }
+
+    /// [`TriangleBvh::nearest_matching_within`] with triangle `start` (if in range) offered
+    /// first: a close guess bounds the search from its first step. Ties still go to the lower
+    /// index, so the answer does not depend on the guess.
+    fn nearest_from(
+        &self,
+        p: [f32; 3],
+        within: f64,
+        start: Option<u32>,
+        keep: &impl Fn(u32) -> bool,
+    ) -> Option<Nearest> {
         if self.triangles.is_empty() || within.is_nan() {
             return None;
         }
         let mut best = Best::within(within);
+        if let Some(t) = start.and_then(|f| self.triangles.get(f as usize).map(|t| (f, t))) {
+            best.offer(p, t.0, t.1, keep);
+        }
         // The query's own cell, then its neighbours: enough on the surface.
         let mut listed = false;
         for ring in 0..=1 {

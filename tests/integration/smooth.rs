@@ -468,6 +468,32 @@ fn distances_match_brute_force_on_random_meshes() {
         assert!((d.hausdorff_mm - h).abs() <= 1e-6 * h.max(1e-30));
         let mean = ab.iter().sum::<f64>() / ab.len() as f64;
         assert!((d.a_to_b_mean_mm - mean).abs() <= 1e-6 * mean.max(1e-30));
+        // A moved copy with the same triangles (each vertex's search starts from its own
+        // faces there): the same distances as testing every triangle.
+        let moved: Vec<[f32; 3]> = a
+            .positions()
+            .iter()
+            .map(|p| p.map(|x| x + (rng.f32() - 0.5) * 0.2 * scale as f32))
+            .collect();
+        let c = Mesh::new(moved, a.triangles().to_vec()).unwrap();
+        let d = surface_distance(&a, &ga, &c, &TriangleBvh::build(&c));
+        let ac: Vec<f64> = a
+            .positions()
+            .iter()
+            .map(|&p| brute_distance(p, &c))
+            .collect();
+        let ca: Vec<f64> = c
+            .positions()
+            .iter()
+            .map(|&p| brute_distance(p, &a))
+            .collect();
+        let (ac_max, ca_max) = (
+            ac.iter().cloned().fold(0.0, f64::max),
+            ca.iter().cloned().fold(0.0, f64::max),
+        );
+        assert_eq!((d.a_to_b_max_mm, d.b_to_a_max_mm), (ac_max, ca_max));
+        let mean = ca.iter().sum::<f64>() / ca.len() as f64;
+        assert!((d.b_to_a_mean_mm - mean).abs() <= 1e-6 * mean.max(1e-30));
     }
 }
 

@@ -46,6 +46,54 @@ fn the_tree_finds_what_testing_every_triangle_finds() {
     }
 }
 
+/// A guessed start changes nothing: near and far points, with guesses that are right, close,
+/// far, tied with a lower-numbered copy, out of range or missing, give the distances testing
+/// every triangle gives.
+#[test]
+fn a_guessed_start_gives_the_same_distances() {
+    let mut rng = fastrand::Rng::with_seed(22);
+    for n in [1, 4, 60, 2000] {
+        let mut triangles: Vec<[[f32; 3]; 3]> = (0..n)
+            .map(|_| {
+                let c: [f32; 3] = std::array::from_fn(|_| rng.f32() * 40.0);
+                std::array::from_fn(|_| std::array::from_fn(|a| c[a] + rng.f32() * 2.0))
+            })
+            .collect();
+        if n > 3 {
+            triangles[n - 1] = triangles[0];
+        }
+        let tree = TriangleBvh::from_triangles(&triangles);
+        let points: Vec<[f32; 3]> = (0..400)
+            .map(|i| {
+                let corner = triangles[rng.usize(0..n)][rng.usize(0..3)];
+                if i % 2 == 0 {
+                    corner.map(|x| x + 0.3 * (rng.f32() - 0.5))
+                } else {
+                    std::array::from_fn(|_| rng.f32() * 160.0 - 60.0)
+                }
+            })
+            .collect();
+        // One guess short: the last point has none.
+        let guesses: Vec<u32> = (0..points.len() - 1)
+            .map(|i| match i % 4 {
+                0 => rng.u32(0..n as u32),
+                1 => (n - 1) as u32,
+                2 => u32::MAX,
+                _ => n as u32 + rng.u32(0..5),
+            })
+            .collect();
+        let slow: Vec<f64> = points
+            .iter()
+            .map(|&p| {
+                tree.fallback(p, f64::INFINITY, |_| true)
+                    .map_or(f64::INFINITY, |b| b.0)
+            })
+            .collect();
+        assert_eq!(tree.distances_from(&points, &guesses), slow, "n {n}");
+        assert_eq!(tree.distances(&points), slow, "n {n}");
+    }
+}
+
 /// The disk bound never exceeds the distance to any triangle of its leaf (checked in f64
 /// against every triangle), for near-flat and folded leaves, tiny and huge offsets.
 #[test]
