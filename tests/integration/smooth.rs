@@ -473,7 +473,7 @@ fn distances_match_brute_force_on_random_meshes() {
         let moved: Vec<[f32; 3]> = a
             .positions()
             .iter()
-            .map(|p| p.map(|x| x + (rng.f32() - 0.5) * 0.2 * scale as f32))
+            .map(|p| p.map(|x| x + (rng.f32() - 0.5) * 0.2 * scale))
             .collect();
         let c = Mesh::new(moved, a.triangles().to_vec()).unwrap();
         let d = surface_distance(&a, &ga, &c, &TriangleBvh::build(&c));
