@@ -345,11 +345,23 @@ impl TriangleBvh {
     }
 
     /// Distance from each point to the surface (mm), in parallel; infinite if it is empty.
+    /// Points go in runs, each search starting from the previous point's nearest triangle:
+    /// neighbouring points (a mesh's vertices) start close to their answer, and the answer
+    /// does not depend on where a search starts.
     pub fn distances(&self, points: &[[f32; 3]]) -> Vec<f64> {
-        points
-            .par_iter()
-            .map(|&p| self.nearest(p).map_or(f64::INFINITY, |n| n.distance))
-            .collect()
+        const RUN: usize = 256;
+        let mut out = vec![0.0; points.len()];
+        out.par_chunks_mut(RUN)
+            .zip(points.par_chunks(RUN))
+            .for_each(|(out, points)| {
+                let mut previous = None;
+                for (d, &p) in out.iter_mut().zip(points) {
+                    let found = self.nearest_from(p, f64::INFINITY, previous, &|_| true);
+                    previous = found.map(|n| n.triangle);
+                    *d = found.map_or(f64::INFINITY, |n| n.distance);
+                }
+            });
+        out
     }
 
     /// [`TriangleBvh::distances`], the search for `points[i]` starting from triangle
