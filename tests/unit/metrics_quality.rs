@@ -107,13 +107,12 @@ mod shape_tests {
         assert!(checked > 5000);
         // Whole meshes: the pick across triangles too, with and without the degenerate ones
         // (whose zero angle is the smallest).
-        let jittered = Mesh::new(
-            all.iter().flatten().copied().collect(),
-            (0..all.len() as u32)
-                .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
-                .collect(),
-        )
-        .unwrap();
+        // Each triangle with corners of its own.
+        let soup = |t: &[[[f32; 3]; 3]]| {
+            let faces = (0..t.len() as u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]);
+            Mesh::new(t.iter().flatten().copied().collect(), faces.collect()).unwrap()
+        };
+        let jittered = soup(&all);
         let sound: Vec<[[f32; 3]; 3]> = all
             .iter()
             .copied()
@@ -122,13 +121,7 @@ mod shape_tests {
                 min_triangle_angle_of_every_corner(&one) > 0.0
             })
             .collect();
-        let sound = Mesh::new(
-            sound.iter().flatten().copied().collect(),
-            (0..sound.len() as u32)
-                .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
-                .collect(),
-        )
-        .unwrap();
+        let sound = soup(&sound);
         for m in [mesh, &jittered, &sound] {
             assert_eq!(
                 min_triangle_angle(m).to_bits(),

@@ -3,21 +3,26 @@
 use destair::spatial::bvh::*;
 use destair::spatial::point_triangle_distance2;
 
+/// `n` small triangles scattered in a 40 mm box, the last a copy of the first (a tie).
+fn scattered_triangles(rng: &mut fastrand::Rng, n: usize) -> Vec<[[f32; 3]; 3]> {
+    let mut triangles: Vec<[[f32; 3]; 3]> = (0..n)
+        .map(|_| {
+            let c: [f32; 3] = std::array::from_fn(|_| rng.f32() * 40.0);
+            std::array::from_fn(|_| std::array::from_fn(|a| c[a] + rng.f32() * 2.0))
+        })
+        .collect();
+    if n > 3 {
+        triangles[n - 1] = triangles[0];
+    }
+    triangles
+}
+
 #[test]
 fn the_tree_finds_what_testing_every_triangle_finds() {
     let mut rng = fastrand::Rng::with_seed(21);
     for round in 0..30 {
         let n = [1, 2, 5, 40, 300, 3000][round % 6];
-        // Small triangles scattered in a box, some repeated exactly (ties).
-        let mut triangles: Vec<[[f32; 3]; 3]> = (0..n)
-            .map(|_| {
-                let c: [f32; 3] = std::array::from_fn(|_| rng.f32() * 40.0);
-                std::array::from_fn(|_| std::array::from_fn(|a| c[a] + rng.f32() * 2.0))
-            })
-            .collect();
-        if n > 3 {
-            triangles[n - 1] = triangles[0];
-        }
+        let triangles = scattered_triangles(&mut rng, n);
         let tree = TriangleBvh::from_triangles(&triangles);
         for _ in 0..200 {
             // Near and far (up to 60 mm outside the box), and on the surface (next to a
@@ -53,15 +58,7 @@ fn the_tree_finds_what_testing_every_triangle_finds() {
 fn a_guessed_start_gives_the_same_distances() {
     let mut rng = fastrand::Rng::with_seed(22);
     for n in [1, 4, 60, 2000] {
-        let mut triangles: Vec<[[f32; 3]; 3]> = (0..n)
-            .map(|_| {
-                let c: [f32; 3] = std::array::from_fn(|_| rng.f32() * 40.0);
-                std::array::from_fn(|_| std::array::from_fn(|a| c[a] + rng.f32() * 2.0))
-            })
-            .collect();
-        if n > 3 {
-            triangles[n - 1] = triangles[0];
-        }
+        let triangles = scattered_triangles(&mut rng, n);
         let tree = TriangleBvh::from_triangles(&triangles);
         let points: Vec<[f32; 3]> = (0..400)
             .map(|i| {
