@@ -38,7 +38,8 @@ impl TriangleCells {
             return TriangleCells::default();
         }
         let n = triangles.len();
-        // The box, exactly (f32 minima and maxima), from every corner.
+        // The box, exactly (f32 minima and maxima), from every corner; a NaN coordinate is
+        // passed over (the corner goes first: `min` and `max` keep the second on NaN).
         let (lo, hi) = triangles
             .par_iter()
             .fold(
@@ -46,8 +47,8 @@ impl TriangleCells {
                 |(mut lo, mut hi), t| {
                     for q in t {
                         for a in 0..3 {
-                            lo[a] = super::min(lo[a], q[a]);
-                            hi[a] = super::max(hi[a], q[a]);
+                            lo[a] = super::min(q[a], lo[a]);
+                            hi[a] = super::max(q[a], hi[a]);
                         }
                     }
                     (lo, hi)
