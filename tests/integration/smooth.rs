@@ -398,6 +398,14 @@ fn random_mesh(rng: &mut fastrand::Rng, n_vertices: usize, n_triangles: usize, s
     Mesh::new(p, t).unwrap()
 }
 
+/// Distance from every vertex of `from` to `to`, each triangle tested.
+fn brute_distances(from: &Mesh, to: &Mesh) -> Vec<f64> {
+    from.positions()
+        .iter()
+        .map(|&p| brute_distance(p, to))
+        .collect()
+}
+
 fn brute_distance(p: [f32; 3], m: &Mesh) -> f64 {
     let pos = m.positions();
     m.triangles()
@@ -454,16 +462,7 @@ fn distances_match_brute_force_on_random_meshes() {
             assert!((kept.distance - brute_even).abs() <= 1e-6 * brute_even.max(1e-30));
         }
         let d = surface_distance(&a, &ga, &b, &gb);
-        let ab: Vec<f64> = a
-            .positions()
-            .iter()
-            .map(|&p| brute_distance(p, &b))
-            .collect();
-        let ba: Vec<f64> = b
-            .positions()
-            .iter()
-            .map(|&p| brute_distance(p, &a))
-            .collect();
+        let (ab, ba) = (brute_distances(&a, &b), brute_distances(&b, &a));
         let h = ab.iter().chain(&ba).cloned().fold(0.0, f64::max);
         assert!((d.hausdorff_mm - h).abs() <= 1e-6 * h.max(1e-30));
         let mean = ab.iter().sum::<f64>() / ab.len() as f64;
@@ -477,21 +476,9 @@ fn distances_match_brute_force_on_random_meshes() {
             .collect();
         let c = Mesh::new(moved, a.triangles().to_vec()).unwrap();
         let d = surface_distance(&a, &ga, &c, &TriangleBvh::build(&c));
-        let ac: Vec<f64> = a
-            .positions()
-            .iter()
-            .map(|&p| brute_distance(p, &c))
-            .collect();
-        let ca: Vec<f64> = c
-            .positions()
-            .iter()
-            .map(|&p| brute_distance(p, &a))
-            .collect();
-        let (ac_max, ca_max) = (
-            ac.iter().cloned().fold(0.0, f64::max),
-            ca.iter().cloned().fold(0.0, f64::max),
-        );
-        assert_eq!((d.a_to_b_max_mm, d.b_to_a_max_mm), (ac_max, ca_max));
+        let (ac, ca) = (brute_distances(&a, &c), brute_distances(&c, &a));
+        let max = |d: &[f64]| d.iter().cloned().fold(0.0, f64::max);
+        assert_eq!((d.a_to_b_max_mm, d.b_to_a_max_mm), (max(&ac), max(&ca)));
         let mean = ca.iter().sum::<f64>() / ca.len() as f64;
         assert!((d.b_to_a_mean_mm - mean).abs() <= 1e-6 * mean.max(1e-30));
     }

@@ -105,9 +105,8 @@ mod shape_tests {
             checked += 1;
         }
         assert!(checked > 5000);
-        // Whole meshes: the pick across triangles too, with and without the degenerate ones
-        // (whose zero angle is the smallest).
-        // Each triangle with corners of its own.
+        // Whole meshes, each triangle with corners of its own: the pick across triangles
+        // too, with and without the degenerate ones (whose zero angle is the smallest).
         let soup = |t: &[[[f32; 3]; 3]]| {
             let faces = (0..t.len() as u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]);
             Mesh::new(t.iter().flatten().copied().collect(), faces.collect()).unwrap()
