@@ -14,6 +14,9 @@ use std::sync::OnceLock;
 /// Vertices per parallel block when a CSR array is split among threads.
 const VERTEX_BLOCK: usize = 8192;
 
+/// Blocks found side by side before they are appended (a wave: about 5 MB of block buffers).
+const WAVE_BLOCKS: usize = 8;
+
 /// One boundary loop: vertices in order along edges that have a single incident face.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct BoundaryLoop {
@@ -102,29 +105,50 @@ impl Topology {
                 }
             });
 
-        // One parallel sweep over vertex blocks: each vertex gathers the spokes of its faces,
-        // which give its sorted neighbours, the edges it owns (those to larger vertices) with
-        // their face counts and orientation, and its fans. Blocks are concatenated in order.
-        let blocks: Vec<BlockTopology> = vertex_blocks(n)
-            .into_par_iter()
-            .map_init(Spokes::default, |spokes, range| {
-                block_topology(tris, &vf_offsets, &vf_faces, range, spokes)
-            })
-            .collect();
-        let (vv_offsets, vv_neighbors, edges, edge_n_faces) = concatenate(&blocks, n);
-        let mut non_manifold_edges = Vec::new();
-        let mut inconsistent_edges = Vec::new();
-        let mut boundary_edges = Vec::new();
-        let mut non_manifold_vertices = Vec::new();
-        let mut first_edge = 0u32;
-        for b in &blocks {
-            non_manifold_edges.extend(b.non_manifold_edges.iter().map(|e| first_edge + e));
-            inconsistent_edges.extend(b.inconsistent_edges.iter().map(|e| first_edge + e));
-            boundary_edges.extend_from_slice(&b.boundary_edges);
-            non_manifold_vertices.extend_from_slice(&b.non_manifold_vertices);
-            first_edge += b.edges.len() as u32;
+        // Parallel sweeps over waves of vertex blocks: each vertex gathers the spokes of its
+        // faces, which give its sorted neighbours, the edges it owns (those to larger vertices)
+        // with their face counts and orientation, and its fans. A wave's blocks are appended in
+        // order while the next wave is found, so the blocks' buffers are two waves' worth,
+        // reused (fresh pages cost a fault each; a copy of every block did half of the build's).
+        let blocks = vertex_blocks(n);
+        let waves: Vec<&[Range<usize>]> = blocks.chunks(WAVE_BLOCKS).collect();
+        let mut joined = Joined::with_capacity(n, vf_faces.len());
+        let mut front: Vec<BlockTopology> = Vec::new();
+        let mut back: Vec<BlockTopology> = Vec::new();
+        let find_wave = |wave: &[Range<usize>], out: &mut Vec<BlockTopology>| {
+            out.resize_with(wave.len(), BlockTopology::default);
+            out.par_iter_mut().zip(wave).for_each_init(
+                Spokes::default,
+                |spokes, (block, range)| {
+                    block_topology(tris, &vf_offsets, &vf_faces, range.clone(), spokes, block)
+                },
+            );
+        };
+        if let Some(first) = waves.first() {
+            find_wave(first, &mut front);
         }
-        drop(blocks);
+        for k in 0..waves.len() {
+            std::mem::swap(&mut front, &mut back);
+            rayon::join(
+                || joined.append(&back),
+                || {
+                    if let Some(next) = waves.get(k + 1) {
+                        find_wave(next, &mut front);
+                    }
+                },
+            );
+        }
+        drop((front, back));
+        let Joined {
+            vv_offsets,
+            vv_neighbors,
+            edges,
+            edge_n_faces,
+            non_manifold_edges,
+            inconsistent_edges,
+            boundary_edges,
+            non_manifold_vertices,
+        } = joined;
 
         let unreferenced_vertices: Vec<u32> = (0..n)
             .filter(|&v| vf_offsets[v] == vf_offsets[v + 1])
@@ -327,17 +351,9 @@ fn block_topology(
     vf_faces: &[u32],
     range: Range<usize>,
     scratch: &mut Spokes,
-) -> BlockTopology {
-    let first_face = vf_offsets[range.start] as usize;
-    let n_corners = vf_offsets[range.end] as usize - first_face;
-    let mut out = BlockTopology {
-        degree_ends: Vec::with_capacity(range.len()),
-        // On a closed manifold a vertex has as many neighbours as faces.
-        neighbors: Vec::with_capacity(n_corners),
-        edges: Vec::with_capacity(n_corners / 2),
-        edge_n_faces: Vec::with_capacity(n_corners / 2),
-        ..Default::default()
-    };
+    out: &mut BlockTopology,
+) {
+    out.clear();
     for v in range {
         let faces = &vf_faces[vf_offsets[v] as usize..vf_offsets[v + 1] as usize];
         let spokes = &mut scratch.spokes;
@@ -405,50 +421,73 @@ fn block_topology(
         }
         out.degree_ends.push(out.neighbors.len() as u32);
     }
-    out
 }
 
-/// Joins the blocks' neighbour lists and edges into global CSR and edge arrays, copying the
-/// blocks in parallel into disjoint slices.
-#[allow(clippy::type_complexity)]
-fn concatenate(
-    blocks: &[BlockTopology],
-    n: usize,
-) -> (Vec<u32>, Vec<u32>, Vec<[u32; 2]>, Vec<u32>) {
-    let mut neighbor_starts = Vec::with_capacity(blocks.len());
-    let (mut n_neighbors, mut n_edges) = (0usize, 0usize);
-    for b in blocks {
-        neighbor_starts.push(n_neighbors);
-        n_neighbors += b.neighbors.len();
-        n_edges += b.edges.len();
+impl BlockTopology {
+    /// Empties every list, keeping the buffers.
+    fn clear(&mut self) {
+        self.degree_ends.clear();
+        self.neighbors.clear();
+        self.edges.clear();
+        self.edge_n_faces.clear();
+        self.non_manifold_edges.clear();
+        self.inconsistent_edges.clear();
+        self.boundary_edges.clear();
+        self.non_manifold_vertices.clear();
     }
-    let mut vv_offsets = vec![0u32; n + 1];
-    let mut vv_neighbors = vec![0u32; n_neighbors];
-    let mut edges = vec![[0u32; 2]; n_edges];
-    let mut edge_n_faces = vec![0u32; n_edges];
-    let offset_parts = split_lengths(
-        blocks.iter().map(|b| b.degree_ends.len()),
-        &mut vv_offsets[1..],
-    );
-    let neighbor_parts = split_lengths(blocks.iter().map(|b| b.neighbors.len()), &mut vv_neighbors);
-    let edge_parts = split_lengths(blocks.iter().map(|b| b.edges.len()), &mut edges);
-    let count_parts = split_lengths(blocks.iter().map(|b| b.edges.len()), &mut edge_n_faces);
-    blocks
-        .par_iter()
-        .zip(neighbor_starts)
-        .zip(offset_parts)
-        .zip(neighbor_parts)
-        .zip(edge_parts)
-        .zip(count_parts)
-        .for_each(|(((((b, start), offsets), neighbors), edges), counts)| {
-            for (o, &d) in offsets.iter_mut().zip(&b.degree_ends) {
-                *o = start as u32 + d;
-            }
-            neighbors.copy_from_slice(&b.neighbors);
-            edges.copy_from_slice(&b.edges);
-            counts.copy_from_slice(&b.edge_n_faces);
-        });
-    (vv_offsets, vv_neighbors, edges, edge_n_faces)
+}
+
+/// The blocks' lists joined in vertex order: global CSR and edge arrays, edge indices global.
+struct Joined {
+    vv_offsets: Vec<u32>,
+    vv_neighbors: Vec<u32>,
+    edges: Vec<[u32; 2]>,
+    edge_n_faces: Vec<u32>,
+    non_manifold_edges: Vec<u32>,
+    inconsistent_edges: Vec<u32>,
+    boundary_edges: Vec<[u32; 2]>,
+    non_manifold_vertices: Vec<u32>,
+}
+
+impl Joined {
+    /// Room for `n` vertices with `n_corners` face corners: a vertex has at most two
+    /// neighbours per face, and every edge owns at least one of the two spokes of a corner, so
+    /// the lists never move (pages are touched only as they fill, about half of this on a
+    /// closed manifold).
+    fn with_capacity(n: usize, n_corners: usize) -> Joined {
+        let mut vv_offsets = Vec::with_capacity(n + 1);
+        vv_offsets.push(0);
+        Joined {
+            vv_offsets,
+            vv_neighbors: Vec::with_capacity(2 * n_corners),
+            edges: Vec::with_capacity(n_corners),
+            edge_n_faces: Vec::with_capacity(n_corners),
+            non_manifold_edges: Vec::new(),
+            inconsistent_edges: Vec::new(),
+            boundary_edges: Vec::new(),
+            non_manifold_vertices: Vec::new(),
+        }
+    }
+
+    /// Appends the blocks that follow the vertices joined so far, in order.
+    fn append(&mut self, blocks: &[BlockTopology]) {
+        for b in blocks {
+            let start = self.vv_neighbors.len() as u32;
+            let first_edge = self.edges.len() as u32;
+            self.vv_offsets
+                .extend(b.degree_ends.iter().map(|&d| start + d));
+            self.vv_neighbors.extend_from_slice(&b.neighbors);
+            self.edges.extend_from_slice(&b.edges);
+            self.edge_n_faces.extend_from_slice(&b.edge_n_faces);
+            self.non_manifold_edges
+                .extend(b.non_manifold_edges.iter().map(|e| first_edge + e));
+            self.inconsistent_edges
+                .extend(b.inconsistent_edges.iter().map(|e| first_edge + e));
+            self.boundary_edges.extend_from_slice(&b.boundary_edges);
+            self.non_manifold_vertices
+                .extend_from_slice(&b.non_manifold_vertices);
+        }
+    }
 }
 
 fn find_local(parent: &mut [u32], mut x: u32) -> u32 {

@@ -20,9 +20,8 @@ fn random_mesh(rng: &mut fastrand::Rng) -> Mesh {
     Mesh::new(positions, triangles).unwrap()
 }
 
-/// Fans at a vertex by flood fill over faces sharing an edge at that vertex.
-fn brute_fans(tris: &[[u32; 3]], v: u32) -> usize {
-    let faces: Vec<[u32; 3]> = tris.iter().copied().filter(|t| t.contains(&v)).collect();
+/// Fans at a vertex by flood fill over its faces that share an edge at that vertex.
+fn brute_fans(faces: &[[u32; 3]], v: u32) -> usize {
     let mut seen = vec![false; faces.len()];
     let mut fans = 0;
     for s in 0..faces.len() {
@@ -48,99 +47,149 @@ fn brute_fans(tris: &[[u32; 3]], v: u32) -> usize {
     fans
 }
 
+/// Every finding of `Topology::build` against sets and maps built from the triangles directly.
+fn assert_matches_brute_force(mesh: &Mesh) {
+    let topo = Topology::build(mesh);
+    let valid = |t: &[u32; 3]| t[0] != t[1] && t[1] != t[2] && t[0] != t[2];
+    let tris: Vec<[u32; 3]> = mesh.triangles().iter().copied().filter(valid).collect();
+    // Edge -> (faces walking lo->hi, faces walking hi->lo).
+    let mut edges: BTreeMap<[u32; 2], (u32, u32)> = BTreeMap::new();
+    for t in &tris {
+        for k in 0..3 {
+            let (a, b) = (t[k], t[(k + 1) % 3]);
+            let e = edges.entry([a.min(b), a.max(b)]).or_default();
+            if a < b {
+                e.0 += 1
+            } else {
+                e.1 += 1
+            }
+        }
+    }
+    let keys: Vec<[u32; 2]> = edges.keys().copied().collect();
+    assert_eq!(topo.edges(), keys.as_slice());
+    let counts: Vec<u32> = edges.values().map(|(a, b)| a + b).collect();
+    assert_eq!(topo.edge_n_faces(), counts.as_slice());
+    let inconsistent: Vec<u32> = edges
+        .values()
+        .enumerate()
+        .filter(|(_, (a, b))| a + b == 2 && (*a == 2 || *b == 2))
+        .map(|(i, _)| i as u32)
+        .collect();
+    assert_eq!(topo.inconsistent_edges(), inconsistent.as_slice());
+    let non_manifold: Vec<u32> = counts
+        .iter()
+        .enumerate()
+        .filter(|(_, &c)| c > 2)
+        .map(|(i, _)| i as u32)
+        .collect();
+    assert_eq!(topo.non_manifold_edges(), non_manifold.as_slice());
+    let n = mesh.n_vertices();
+    let mut neighbours = vec![BTreeSet::new(); n];
+    for &[a, b] in &keys {
+        neighbours[a as usize].insert(b);
+        neighbours[b as usize].insert(a);
+    }
+    let mut faces_at = vec![Vec::new(); n];
+    for (f, t) in mesh
+        .triangles()
+        .iter()
+        .enumerate()
+        .filter(|(_, t)| valid(t))
+    {
+        for &v in t {
+            faces_at[v as usize].push(f as u32);
+        }
+    }
+    for v in 0..n {
+        let expected: Vec<u32> = neighbours[v].iter().copied().collect();
+        assert_eq!(topo.neighbors(v), expected.as_slice(), "vertex {v}");
+        assert_eq!(topo.vertex_faces(v), faces_at[v].as_slice(), "vertex {v}");
+        let faces: Vec<[u32; 3]> = faces_at[v]
+            .iter()
+            .map(|&f| mesh.triangles()[f as usize])
+            .collect();
+        let nm = topo.non_manifold_vertices().contains(&(v as u32));
+        assert_eq!(nm, brute_fans(&faces, v as u32) > 1, "vertex {v}");
+    }
+    // Every boundary edge appears in exactly one loop step.
+    let boundary: BTreeSet<[u32; 2]> = edges
+        .iter()
+        .filter(|(_, (a, b))| a + b == 1)
+        .map(|(k, _)| *k)
+        .collect();
+    let mut walked = BTreeSet::new();
+    for BoundaryLoop { vertices, closed } in topo.boundary_loops() {
+        let steps = if *closed {
+            vertices.len()
+        } else {
+            vertices.len() - 1
+        };
+        for i in 0..steps {
+            let (a, b) = (vertices[i], vertices[(i + 1) % vertices.len()]);
+            assert!(walked.insert([a.min(b), a.max(b)]), "edge walked twice");
+        }
+    }
+    assert_eq!(walked, boundary);
+    let v_ref = faces_at.iter().filter(|f| !f.is_empty()).count();
+    assert_eq!(
+        topo.euler_characteristic(),
+        v_ref as i64 - keys.len() as i64 + tris.len() as i64
+    );
+    assert_eq!(topo.unreferenced_vertices().len(), n - v_ref);
+}
+
 #[test]
 fn matches_brute_force_on_random_meshes() {
     let mut rng = fastrand::Rng::with_seed(42);
     for _ in 0..3000 {
-        let mesh = random_mesh(&mut rng);
-        let topo = Topology::build(&mesh);
-        let tris: Vec<[u32; 3]> = mesh
-            .triangles()
-            .iter()
-            .copied()
-            .filter(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2])
-            .collect();
-        // Edge -> (faces walking lo->hi, faces walking hi->lo).
-        let mut edges: BTreeMap<[u32; 2], (u32, u32)> = BTreeMap::new();
-        for t in &tris {
-            for k in 0..3 {
-                let (a, b) = (t[k], t[(k + 1) % 3]);
-                let e = edges.entry([a.min(b), a.max(b)]).or_default();
-                if a < b {
-                    e.0 += 1
-                } else {
-                    e.1 += 1
-                }
-            }
-        }
-        let keys: Vec<[u32; 2]> = edges.keys().copied().collect();
-        assert_eq!(topo.edges(), keys.as_slice());
-        let counts: Vec<u32> = edges.values().map(|(a, b)| a + b).collect();
-        assert_eq!(topo.edge_n_faces(), counts.as_slice());
-        let inconsistent: Vec<u32> = edges
-            .values()
-            .enumerate()
-            .filter(|(_, (a, b))| a + b == 2 && (*a == 2 || *b == 2))
-            .map(|(i, _)| i as u32)
-            .collect();
-        assert_eq!(topo.inconsistent_edges(), inconsistent.as_slice());
-        let non_manifold: Vec<u32> = counts
-            .iter()
-            .enumerate()
-            .filter(|(_, &c)| c > 2)
-            .map(|(i, _)| i as u32)
-            .collect();
-        assert_eq!(topo.non_manifold_edges(), non_manifold.as_slice());
-        for v in 0..mesh.n_vertices() as u32 {
-            let neighbours: BTreeSet<u32> = keys
-                .iter()
-                .filter(|e| e.contains(&v))
-                .map(|e| if e[0] == v { e[1] } else { e[0] })
-                .collect();
-            let got: Vec<u32> = topo.neighbors(v as usize).to_vec();
-            assert_eq!(got, neighbours.into_iter().collect::<Vec<_>>());
-            let faces: Vec<u32> = mesh
-                .triangles()
-                .iter()
-                .enumerate()
-                .filter(|(_, t)| tris.contains(t) && t.contains(&v))
-                .map(|(i, _)| i as u32)
-                .collect();
-            assert_eq!(topo.vertex_faces(v as usize), faces.as_slice());
-            let nm = topo.non_manifold_vertices().contains(&v);
-            assert_eq!(nm, brute_fans(&tris, v) > 1, "vertex {v} of {mesh:?}");
-        }
-        // Every boundary edge appears in exactly one loop step.
-        let boundary: BTreeSet<[u32; 2]> = edges
-            .iter()
-            .filter(|(_, (a, b))| a + b == 1)
-            .map(|(k, _)| *k)
-            .collect();
-        let mut walked = BTreeSet::new();
-        for BoundaryLoop { vertices, closed } in topo.boundary_loops() {
-            let steps = if *closed {
-                vertices.len()
-            } else {
-                vertices.len() - 1
-            };
-            for i in 0..steps {
-                let (a, b) = (vertices[i], vertices[(i + 1) % vertices.len()]);
-                assert!(walked.insert([a.min(b), a.max(b)]), "edge walked twice");
-            }
-        }
-        assert_eq!(walked, boundary);
-        let v_ref = (0..mesh.n_vertices() as u32)
-            .filter(|v| tris.iter().any(|t| t.contains(v)))
-            .count();
-        assert_eq!(
-            topo.euler_characteristic(),
-            v_ref as i64 - keys.len() as i64 + tris.len() as i64
-        );
-        assert_eq!(
-            topo.unreferenced_vertices().len(),
-            mesh.n_vertices() - v_ref
-        );
+        assert_matches_brute_force(&random_mesh(&mut rng));
     }
+}
+
+/// A torus of 144,000 vertices (many blocks of vertices, found and joined in several waves)
+/// with faults scattered through it: holes, flipped faces, extra faces on edges, faces
+/// meeting it at one vertex only, degenerate faces and unused vertices, numbered at random.
+#[test]
+fn matches_brute_force_on_a_large_damaged_mesh() {
+    let torus = destair::bench::torus(600, 240);
+    let mut positions = torus.positions().to_vec();
+    let mut triangles = Vec::new();
+    let fresh = |positions: &mut Vec<[f32; 3]>| {
+        positions.push([0.0, 0.0, 0.0]);
+        positions.len() as u32 - 1
+    };
+    for (f, &[a, b, c]) in torus.triangles().iter().enumerate() {
+        match f % 1999 {
+            // A hole.
+            0 => {}
+            // Flipped.
+            1 => triangles.push([a, c, b]),
+            // A third face on edge a-b.
+            2 => {
+                triangles.push([a, b, c]);
+                let d = fresh(&mut positions);
+                triangles.push([a, b, d]);
+            }
+            // A face touching the surface at vertex a only (a pinch).
+            3 => {
+                triangles.push([a, b, c]);
+                let (d, e) = (fresh(&mut positions), fresh(&mut positions));
+                triangles.push([a, d, e]);
+            }
+            // Degenerate beside the face.
+            4 => {
+                triangles.push([a, b, c]);
+                triangles.push([a, a, b]);
+            }
+            _ => triangles.push([a, b, c]),
+        }
+    }
+    for _ in 0..5 {
+        fresh(&mut positions);
+    }
+    let mesh = Mesh::new(positions, triangles).unwrap();
+    assert!(mesh.n_vertices() > 16 * 8192, "several waves of blocks");
+    assert_matches_brute_force(&destair::bench::shuffled(&mesh, 11));
 }
 
 #[test]
