@@ -102,9 +102,24 @@ pub struct CapDetection {
     pub n_terraces: usize,
     /// Caps found only on the smoothed copy (terraced oblique ends), included in `caps`.
     pub n_from_smoothed_copy: usize,
+    /// False when caps were not looked for (see [`CapDetection::not_searched`]).
+    #[serde(skip)]
+    pub searched: bool,
 }
 
 impl CapDetection {
+    /// No caps because none were looked for: `smooth` with caps smoothed like the rest, where
+    /// they would change nothing.
+    pub fn not_searched() -> CapDetection {
+        CapDetection {
+            caps: Vec::new(),
+            n_regions: 0,
+            n_terraces: 0,
+            n_from_smoothed_copy: 0,
+            searched: false,
+        }
+    }
+
     /// Per-vertex flag: the vertex belongs to a cap.
     pub fn cap_vertices(&self, n_vertices: usize) -> Vec<bool> {
         let mut on = vec![false; n_vertices];
@@ -264,6 +279,7 @@ impl CapCandidates {
             n_regions: self.plain.n_regions,
             n_terraces: self.plain.n_terraces,
             n_from_smoothed_copy: 0,
+            searched: true,
         };
         let Some(found) = self.smoothed else {
             return detection;

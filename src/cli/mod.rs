@@ -274,6 +274,7 @@ impl ContextArgs {
                 CapsArg::Preserve => CapPolicy::Preserve,
                 CapsArg::Smooth => CapPolicy::Smooth,
             },
+            find_smoothed_caps: true,
             cap_params: Default::default(),
             distance_scaling: self.distance_scaling,
             combine: match self.combine {

@@ -231,11 +231,13 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         || match weights {
             None => {
                 let refs: Vec<&destair::spatial::TriangleBvh> = trees.iter().collect();
+                // Caps smoothed like the rest change nothing written here: not looked for.
+                let params = destair::weights::ContextParams {
+                    find_smoothed_caps: false,
+                    ..ctx.params(staircase)
+                };
                 Ok(destair::weights::context_weights(
-                    mesh,
-                    &topology,
-                    &ctx.params(staircase),
-                    &refs,
+                    mesh, &topology, &params, &refs,
                 ))
             }
             Some(path) => Err(path),

@@ -389,6 +389,7 @@ pub fn resolve(s: &Settings) -> Result<StructureSettings, String> {
             axis,
             staircase_params,
             caps,
+            find_smoothed_caps: true,
             cap_params: Default::default(),
             distance_scaling,
             combine,

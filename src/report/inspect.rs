@@ -92,6 +92,10 @@ pub struct ContextSummary {
     pub tau: Option<f32>,
     /// Whether `tau = "auto"` chose it.
     pub tau_auto: bool,
+    /// False when caps were not looked for (`smooth` with caps smoothed): the counts below are
+    /// then 0 and say nothing.
+    #[serde(skip)]
+    pub caps_searched: bool,
     pub n_flat_regions: usize,
     pub n_terraces: usize,
     /// Caps found only on the smoothed copy (ends clipped obliquely, terraced on the mesh).
@@ -145,6 +149,7 @@ pub fn context_summary(ctx: &Context, n_vertices: usize) -> ContextSummary {
         staircase_share: n_staircase_vertices as f64 / n_vertices.max(1) as f64,
         tau: ctx.staircase.as_ref().map(|s| s.tau),
         tau_auto: ctx.staircase.as_ref().is_some_and(|s| s.tau_auto),
+        caps_searched: ctx.caps.searched,
         n_flat_regions: ctx.caps.n_regions,
         n_terraces: ctx.caps.n_terraces,
         n_caps_from_smoothed_copy: ctx.caps.n_from_smoothed_copy,
@@ -200,14 +205,18 @@ impl ContextSummary {
             self.n_staircase_vertices,
             100.0 * self.staircase_share
         );
-        let _ = writeln!(
-            s,
-            "  flat regions {} (terraces {}), caps {} ({} found on the smoothed copy)",
-            self.n_flat_regions,
-            self.n_terraces,
-            self.caps.len(),
-            self.n_caps_from_smoothed_copy
-        );
+        if self.caps_searched {
+            let _ = writeln!(
+                s,
+                "  flat regions {} (terraces {}), caps {} ({} found on the smoothed copy)",
+                self.n_flat_regions,
+                self.n_terraces,
+                self.caps.len(),
+                self.n_caps_from_smoothed_copy
+            );
+        } else {
+            let _ = writeln!(s, "  caps: not looked for (smoothed like the rest)");
+        }
         for c in &self.caps {
             let _ = writeln!(
                 s,

@@ -44,6 +44,10 @@ pub struct ContextParams {
     pub axis: AxisChoice,
     pub staircase_params: StaircaseParams,
     pub caps: CapPolicy,
+    /// Look for caps when `caps` is [`CapPolicy::Smooth`] too, for reports and pictures (on by
+    /// default). `smooth` turns it off: caps smoothed like the rest change nothing it writes.
+    #[serde(skip)]
+    pub find_smoothed_caps: bool,
     pub cap_params: CapParams,
     /// Scaling of the distances to the reference structures (used when references are given).
     pub distance_scaling: DistanceScaling,
@@ -57,6 +61,7 @@ impl Default for ContextParams {
             axis: AxisChoice::Auto,
             staircase_params: StaircaseParams::default(),
             caps: CapPolicy::Preserve,
+            find_smoothed_caps: true,
             cap_params: CapParams::default(),
             distance_scaling: DistanceScaling::Linear,
             combine: Combine::Product,
@@ -154,6 +159,14 @@ pub fn context_weights(
     context_in_mesh_order(&local, &local_topology, params, references).numbered_back(&order)
 }
 
+/// The estimated stack axis (none when given or without staircase weighting), the axis used
+/// (unit) and the staircase weights along it.
+type Staircases = (
+    Option<StackAxis>,
+    Option<[f32; 3]>,
+    Option<StaircaseWeights>,
+);
+
 /// The stack axis (estimated, or given and normalised; none without staircase weighting) and
 /// the staircase weights along it.
 fn staircases(
@@ -162,11 +175,7 @@ fn staircases(
     turns: &TurnLimits,
     params: &ContextParams,
     axis_params: &StackAxisParams,
-) -> (
-    Option<StackAxis>,
-    Option<[f32; 3]>,
-    Option<StaircaseWeights>,
-) {
+) -> Staircases {
     let (estimated_axis, axis) = if !params.staircase {
         (None, None)
     } else {
@@ -198,22 +207,45 @@ pub fn context_in_mesh_order(
     params: &ContextParams,
     references: &[&TriangleBvh],
 ) -> Context {
-    let n = mesh.n_vertices();
     let axis_params = StackAxisParams::default();
+    let axis_limits = [
+        (axis_params.flat_deg, axis_params.flat_deg_per_mm),
+        (axis_params.support_flat_deg, f32::INFINITY),
+    ];
+    let estimates_axis = params.staircase && params.axis == AxisChoice::Auto;
+    if params.caps == CapPolicy::Smooth && !params.find_smoothed_caps {
+        // The staircases alone (caps are not looked for).
+        let (estimated_axis, axis, staircase) = if params.staircase {
+            let mut turns = TurnLimits::new(mesh, topology);
+            if estimates_axis {
+                turns.remember(&axis_limits);
+            }
+            staircases(mesh, topology, &turns, params, &axis_params)
+        } else {
+            (None, None, None)
+        };
+        let caps = CapDetection::not_searched();
+        return weighted(
+            mesh,
+            params,
+            references,
+            (estimated_axis, axis, staircase),
+            caps,
+        );
+    }
     // Cap detection's look at a smoothed copy is mostly serial (flood fills, growth): it starts
     // first, and the stack axis, the staircases and cap detection's look at the mesh itself
     // (which need nothing from it) fill the other cores meanwhile.
     let search = CapSearch::new(mesh, topology);
-    let (smoothed_look, ((estimated_axis, axis, staircase), plain_look)) = rayon::join(
+    let (smoothed_look, (stairs, plain_look)) = rayon::join(
         || search.on_smoothed_copy(mesh, topology, &params.cap_params),
         || {
             // Face and vertex normals once, for the stack axis, the staircases and the caps;
             // the flat-vertex tests of the stack axis and of the caps' look in one walk.
             let mut turns = TurnLimits::new(mesh, topology);
             let mut limits = vec![(params.cap_params.flat_deg, f32::INFINITY)];
-            if params.staircase && params.axis == AxisChoice::Auto {
-                limits.push((axis_params.flat_deg, axis_params.flat_deg_per_mm));
-                limits.push((axis_params.support_flat_deg, f32::INFINITY));
+            if estimates_axis {
+                limits.extend_from_slice(&axis_limits);
             }
             turns.remember(&limits);
             // Cap candidates need nothing from the staircases but their reach, applied at
@@ -226,10 +258,24 @@ pub fn context_in_mesh_order(
     );
     drop(search);
     let candidates = CapCandidates::new(plain_look, smoothed_look);
-    let reach: Option<Vec<bool>> = staircase
+    let reach: Option<Vec<bool>> = stairs
+        .2
         .as_ref()
         .map(|s| s.distance_mm.iter().map(|d| d.is_finite()).collect());
     let caps = candidates.settle(mesh, reach.as_deref(), &params.cap_params);
+    weighted(mesh, params, references, stairs, caps)
+}
+
+/// The weights from the staircases (estimated axis, axis used, staircase weights), the caps
+/// and the distances to `references`, with the analysis behind them.
+fn weighted(
+    mesh: &Mesh,
+    params: &ContextParams,
+    references: &[&TriangleBvh],
+    (estimated_axis, axis, staircase): Staircases,
+    caps: CapDetection,
+) -> Context {
+    let n = mesh.n_vertices();
     let reference_distance_mm =
         (!references.is_empty()).then(|| super::distance::reference_distances(mesh, references));
     // Staircase weighting without a found axis: no staircases, so only the floor beta_min.

@@ -175,7 +175,8 @@ use destair::metrics::{average_normal_curvature, enclosed_volume, minimum_distan
 use destair::smooth::{boundary_vertices, smooth, Method};
 use destair::spatial::TriangleBvh;
 use destair::weights::{
-    context_weights, AxisChoice, ContextParams, DistanceScaling, StaircaseParams, VertexWeights,
+    context_weights, AxisChoice, CapPolicy, ContextParams, DistanceScaling, StaircaseParams,
+    VertexWeights,
 };
 use destair::{Mesh, Topology};
 
@@ -753,4 +754,45 @@ fn context_caps_are_the_detected_caps_for_any_thread_count() {
         let caps = pool.install(|| context_weights(m, &t, &params, &[]).caps);
         assert_eq!(caps, want, "{threads} threads");
     }
+}
+
+#[test]
+fn smoothed_caps_not_looked_for_change_no_weight() {
+    // The aneurysm has three caps; smoothed like the rest, they do not change the weights, so
+    // `smooth` may skip looking for them.
+    let case = named_case("aneurysm", &PhantomOptions::default()).unwrap();
+    let m = &case.meshes[0].1;
+    let t = Topology::build(m);
+    for staircase in [true, false] {
+        let looked = ContextParams {
+            staircase,
+            caps: CapPolicy::Smooth,
+            ..Default::default()
+        };
+        let skipped = ContextParams {
+            find_smoothed_caps: false,
+            ..looked.clone()
+        };
+        let (a, b) = (
+            context_weights(m, &t, &looked, &[]),
+            context_weights(m, &t, &skipped, &[]),
+        );
+        assert!(a.caps.searched && !b.caps.searched);
+        assert_eq!(a.caps.caps.len(), 3, "staircase {staircase}");
+        assert!(b.caps.caps.is_empty());
+        assert_eq!(a.weights, b.weights, "staircase {staircase}");
+        assert_eq!(a.axis, b.axis);
+        assert_eq!(
+            a.staircase.as_ref().map(|s| &s.weights),
+            b.staircase.as_ref().map(|s| &s.weights)
+        );
+        let text = destair::report::inspect::context_summary(&b, m.n_vertices()).to_text();
+        assert!(text.contains("caps: not looked for"), "{text}");
+    }
+    // Preserved caps are always looked for.
+    let preserve = ContextParams {
+        find_smoothed_caps: false,
+        ..Default::default()
+    };
+    assert_eq!(context_weights(m, &t, &preserve, &[]).caps.caps.len(), 3);
 }
