@@ -63,8 +63,10 @@ impl VoxelSizeEstimate {
 /// Distinct offsets counted per axis beyond which the axis is sorted instead (a mesh off any
 /// grid has about as many distinct offsets as edges).
 const MAX_DISTINCT: usize = 1 << 16;
-/// Edges sampled to see whether an axis's offsets are few enough to count.
+/// Edges sampled (about) to see whether an axis's offsets are few enough to count.
 const SAMPLE: usize = 1 << 15;
+/// Vertices per parallel work item in passes over every edge (results do not depend on it).
+const VERTEX_CHUNK: usize = 1 << 13;
 
 /// Reconstructs the voxel size (mm per axis) of the grid a marching-cubes mesh came from.
 /// A mesh on a grid has few distinct edge offsets, so they are counted in one pass over the
@@ -72,7 +74,6 @@ const SAMPLE: usize = 1 << 15;
 /// whole. Both give the same clusters.
 pub fn voxel_size(mesh: &Mesh, topology: &Topology) -> VoxelSizeEstimate {
     let p = mesh.positions();
-    let edges = topology.edges();
     let zero_tol: [f64; 3] = std::array::from_fn(|k| {
         let max_abs = p.iter().map(|q| q[k].abs()).fold(0.0f32, f32::max) as f64;
         // Offsets below a few ulps of the largest coordinate are float noise around 0.
@@ -80,14 +81,18 @@ pub fn voxel_size(mesh: &Mesh, topology: &Topology) -> VoxelSizeEstimate {
     });
     let offset =
         |[a, b]: [u32; 2], k: usize| (p[a as usize][k] as f64 - p[b as usize][k] as f64).abs();
-    let counted = count_offsets(edges, offset, zero_tol);
+    let counted = count_offsets(topology, offset, zero_tol);
     let axes = std::array::from_fn(|k| match &counted[k] {
         Some(distinct) => clusters_spacing(distinct, zero_tol[k]),
         None => {
-            let mut offsets: Vec<f64> = edges
-                .par_iter()
-                .map(|&e| offset(e, k))
-                .filter(|&d| d > zero_tol[k])
+            let mut offsets: Vec<f64> = (0..topology.n_vertices())
+                .into_par_iter()
+                .with_min_len(VERTEX_CHUNK)
+                .flat_map_iter(|v| {
+                    (topology.larger_neighbors(v).iter())
+                        .map(move |&u| offset([v as u32, u], k))
+                        .filter(move |&d| d > zero_tol[k])
+                })
                 .collect();
             offsets.par_sort_unstable_by(f64::total_cmp);
             axis_spacing(&offsets, zero_tol[k])
@@ -97,18 +102,23 @@ pub fn voxel_size(mesh: &Mesh, topology: &Topology) -> VoxelSizeEstimate {
 }
 
 /// Per axis, the distinct edge offsets above `zero_tol` with how often each occurs, ascending;
-/// `None` for an axis with more than [`MAX_DISTINCT`] of them.
+/// `None` for an axis with more than [`MAX_DISTINCT`] of them. The edges are read from the
+/// neighbour lists (each vertex's edges to larger neighbours), not listed.
 fn count_offsets(
-    edges: &[[u32; 2]],
+    topology: &Topology,
     offset: impl Fn([u32; 2], usize) -> f64 + Sync,
     zero_tol: [f64; 3],
 ) -> [Option<Vec<(f64, usize)>>; 3] {
+    let n = topology.n_vertices();
+    let edges_of = |v: usize| (topology.larger_neighbors(v).iter()).map(move |&u| [v as u32, u]);
     // A strided sample tells a mesh off any grid (nearly every sampled offset distinct) at
-    // once, so it goes straight to sorting without filling maps first.
-    let step = (edges.len() / SAMPLE).max(1);
+    // once, so it goes straight to sorting without filling maps first. A vertex owns about
+    // three edges on a closed surface.
+    let step = (3 * n / SAMPLE).max(1);
     let countable: [bool; 3] = std::array::from_fn(|k| {
-        let mut bits: Vec<u64> = (edges.iter().step_by(step))
-            .map(|&e| offset(e, k).to_bits())
+        let mut bits: Vec<u64> = ((0..n).step_by(step))
+            .flat_map(edges_of)
+            .map(|e| offset(e, k).to_bits())
             .collect();
         bits.sort_unstable();
         bits.dedup();
@@ -116,12 +126,16 @@ fn count_offsets(
     });
     type Counts = [Option<rustc_hash::FxHashMap<u64, usize>>; 3];
     let fresh = || -> Counts { countable.map(|c| c.then(Default::default)) };
-    let merged = edges
-        .par_chunks(1 << 14)
+    let chunks: Vec<std::ops::Range<usize>> = (0..n)
+        .step_by(VERTEX_CHUNK)
+        .map(|s| s..(s + VERTEX_CHUNK).min(n))
+        .collect();
+    let merged = chunks
+        .into_par_iter()
         .fold(fresh, |mut counts, chunk| {
             for (k, slot) in counts.iter_mut().enumerate() {
                 let Some(map) = slot else { continue };
-                for &e in chunk {
+                for e in chunk.clone().flat_map(edges_of) {
                     let d = offset(e, k);
                     if d > zero_tol[k] {
                         *map.entry(d.to_bits()).or_insert(0) += 1;

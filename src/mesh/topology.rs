@@ -1,5 +1,5 @@
 //! Mesh connectivity, built once per mesh: CSR vertex->vertex and vertex->face adjacency, the
-//! edge table, and the findings `inspect` reports (boundary loops, non-manifold edges and
+//! edges' face counts (the edge list itself on first request), and the findings `inspect` reports (boundary loops, non-manifold edges and
 //! vertices, orientation consistency, connected components, Euler characteristic).
 //!
 //! Triangles with a repeated vertex index are degenerate: they are listed and left out of all
@@ -33,7 +33,8 @@ pub struct Topology {
     vv_neighbors: Vec<u32>,
     vf_offsets: Vec<u32>,
     vf_faces: Vec<u32>,
-    edges: Vec<[u32; 2]>,
+    /// The edges, listed on first request from the neighbour lists (smoothing never asks).
+    edges: OnceLock<Vec<[u32; 2]>>,
     edge_n_faces: Vec<u32>,
     boundary_loops: Vec<BoundaryLoop>,
     non_manifold_edges: Vec<u32>,
@@ -46,8 +47,8 @@ pub struct Topology {
 }
 
 impl Topology {
-    /// Builds all adjacency and findings (connected components on first request); O(F log
-    /// valence), parallel where it pays.
+    /// Builds all adjacency and findings (the edge list and connected components on first
+    /// request); O(F log valence), parallel where it pays.
     pub fn build(mesh: &Mesh) -> Topology {
         let n = mesh.n_vertices();
         let tris = mesh.triangles();
@@ -142,7 +143,6 @@ impl Topology {
         let Joined {
             vv_offsets,
             vv_neighbors,
-            edges,
             edge_n_faces,
             non_manifold_edges,
             inconsistent_edges,
@@ -161,7 +161,7 @@ impl Topology {
             vv_neighbors,
             vf_offsets,
             vf_faces,
-            edges,
+            edges: OnceLock::new(),
             edge_n_faces,
             boundary_loops,
             non_manifold_edges,
@@ -200,9 +200,46 @@ impl Topology {
         (&self.vf_offsets, &self.vf_faces)
     }
 
-    /// Unique undirected edges as (smaller, larger) vertex index, sorted.
+    /// Unique undirected edges as (smaller, larger) vertex index, sorted: listed from the
+    /// neighbour lists on first request.
     pub fn edges(&self) -> &[[u32; 2]] {
-        &self.edges
+        self.edges.get_or_init(|| self.list_edges())
+    }
+
+    /// The edges (v, u) with u > v, v ascending and u ascending within v: counted and filled
+    /// by blocks of vertices side by side.
+    fn list_edges(&self) -> Vec<[u32; 2]> {
+        let blocks = vertex_blocks(self.n_vertices());
+        let counts: Vec<usize> = blocks
+            .par_iter()
+            .map(|r| r.clone().map(|v| self.larger_neighbors(v).len()).sum())
+            .collect();
+        let mut edges = vec![[0u32; 2]; counts.iter().sum()];
+        split_lengths(counts.iter().copied(), &mut edges)
+            .into_par_iter()
+            .zip(&blocks)
+            .for_each(|(part, range)| {
+                let mut slots = part.iter_mut();
+                for v in range.clone() {
+                    // The list first: zip would otherwise take a slot past its end.
+                    for (&u, slot) in self.larger_neighbors(v).iter().zip(slots.by_ref()) {
+                        *slot = [v as u32, u];
+                    }
+                }
+            });
+        edges
+    }
+
+    /// Number of unique undirected edges (without listing them).
+    pub fn n_edges(&self) -> usize {
+        self.edge_n_faces.len()
+    }
+
+    /// Neighbours of a vertex larger than it, ascending: the vertex's edges in the order
+    /// [`Topology::edges`] lists them, for passes over every edge without the list.
+    pub fn larger_neighbors(&self, vertex_idx: usize) -> &[u32] {
+        let list = self.neighbors(vertex_idx);
+        &list[list.partition_point(|&u| u <= vertex_idx as u32)..]
     }
 
     /// Number of triangles on each edge of [`Topology::edges`] (1 boundary, 2 manifold, more non-manifold).
@@ -253,7 +290,7 @@ impl Topology {
     /// The components, found once (a serial union-find over every edge).
     fn components(&self) -> &(Vec<u32>, usize) {
         self.components
-            .get_or_init(|| components(self.n_vertices(), &self.edges, &self.vf_offsets))
+            .get_or_init(|| components(self.n_vertices(), self.edges(), &self.vf_offsets))
     }
 
     /// Whether every edge has two triangles, consistently oriented, and every vertex one fan.
@@ -269,7 +306,7 @@ impl Topology {
     pub fn euler_characteristic(&self) -> i64 {
         let v = (self.n_vertices() - self.unreferenced_vertices.len()) as i64;
         let f = (self.vf_faces.len() / 3) as i64;
-        v - self.edges.len() as i64 + f
+        v - self.n_edges() as i64 + f
     }
 }
 
@@ -337,7 +374,7 @@ struct BlockTopology {
     /// Running neighbour count at the end of each vertex, relative to the block.
     degree_ends: Vec<u32>,
     neighbors: Vec<u32>,
-    edges: Vec<[u32; 2]>,
+    /// Faces on each edge the block's vertices own, in order (edge indices are local).
     edge_n_faces: Vec<u32>,
     non_manifold_edges: Vec<u32>,
     inconsistent_edges: Vec<u32>,
@@ -396,8 +433,7 @@ fn block_topology(
             out.neighbors.push(u);
             if u > v as u32 {
                 let run = &spokes[i..j];
-                let edge = out.edges.len() as u32;
-                out.edges.push([v as u32, u]);
+                let edge = out.edge_n_faces.len() as u32;
                 out.edge_n_faces.push(run.len() as u32);
                 match run {
                     // Keep the direction the single face walks the edge in.
@@ -428,7 +464,6 @@ impl BlockTopology {
     fn clear(&mut self) {
         self.degree_ends.clear();
         self.neighbors.clear();
-        self.edges.clear();
         self.edge_n_faces.clear();
         self.non_manifold_edges.clear();
         self.inconsistent_edges.clear();
@@ -441,7 +476,6 @@ impl BlockTopology {
 struct Joined {
     vv_offsets: Vec<u32>,
     vv_neighbors: Vec<u32>,
-    edges: Vec<[u32; 2]>,
     edge_n_faces: Vec<u32>,
     non_manifold_edges: Vec<u32>,
     inconsistent_edges: Vec<u32>,
@@ -460,7 +494,6 @@ impl Joined {
         Joined {
             vv_offsets,
             vv_neighbors: Vec::with_capacity(2 * n_corners),
-            edges: Vec::with_capacity(n_corners),
             edge_n_faces: Vec::with_capacity(n_corners),
             non_manifold_edges: Vec::new(),
             inconsistent_edges: Vec::new(),
@@ -473,11 +506,10 @@ impl Joined {
     fn append(&mut self, blocks: &[BlockTopology]) {
         for b in blocks {
             let start = self.vv_neighbors.len() as u32;
-            let first_edge = self.edges.len() as u32;
+            let first_edge = self.edge_n_faces.len() as u32;
             self.vv_offsets
                 .extend(b.degree_ends.iter().map(|&d| start + d));
             self.vv_neighbors.extend_from_slice(&b.neighbors);
-            self.edges.extend_from_slice(&b.edges);
             self.edge_n_faces.extend_from_slice(&b.edge_n_faces);
             self.non_manifold_edges
                 .extend(b.non_manifold_edges.iter().map(|e| first_edge + e));

@@ -274,7 +274,7 @@ pub fn inspect(path: &Path, loaded: &LoadedMesh, topology: &Topology) -> Inspect
         format: loaded.format,
         n_vertices: mesh.n_vertices(),
         n_triangles: mesh.n_triangles(),
-        n_edges: topology.edges().len(),
+        n_edges: topology.n_edges(),
         bounding_box: bounding_box(mesh),
         area_mm2: area(mesh),
         volume_mm3: signed_volume(mesh),

@@ -66,6 +66,7 @@ fn assert_matches_brute_force(mesh: &Mesh) {
         }
     }
     let keys: Vec<[u32; 2]> = edges.keys().copied().collect();
+    assert_eq!(topo.n_edges(), keys.len());
     assert_eq!(topo.edges(), keys.as_slice());
     let counts: Vec<u32> = edges.values().map(|(a, b)| a + b).collect();
     assert_eq!(topo.edge_n_faces(), counts.as_slice());
@@ -103,6 +104,8 @@ fn assert_matches_brute_force(mesh: &Mesh) {
     for v in 0..n {
         let expected: Vec<u32> = neighbours[v].iter().copied().collect();
         assert_eq!(topo.neighbors(v), expected.as_slice(), "vertex {v}");
+        let larger: Vec<u32> = neighbours[v].range(v as u32 + 1..).copied().collect();
+        assert_eq!(topo.larger_neighbors(v), larger.as_slice(), "vertex {v}");
         assert_eq!(topo.vertex_faces(v), faces_at[v].as_slice(), "vertex {v}");
         let faces: Vec<[u32; 3]> = faces_at[v]
             .iter()
