@@ -306,10 +306,9 @@ fn cell_lists(
                 });
             }
         });
-    let mut plain = crate::hugepages::with_capacity(ids.len());
-    ids.into_par_iter()
-        .map(AtomicU32::into_inner)
-        .collect_into_vec(&mut plain);
+    // In place: a Vec's own iterator mapped to a type of the same size and alignment collects
+    // into the same buffer (no second buffer of fresh pages).
+    let plain: Vec<u32> = ids.into_iter().map(AtomicU32::into_inner).collect();
     (offsets, plain)
 }
 
