@@ -196,6 +196,9 @@ pub fn cap_candidates(mesh: &Mesh, topology: &Topology, params: &CapParams) -> C
 /// run beside other analyses of the mesh.
 pub struct CapSearch {
     adjacency: FaceNeighbours,
+    /// Per-vertex scratch for examining regions, shared by both looks (one per worker busy at
+    /// a time, not one per worker and look).
+    scratch: std::sync::Mutex<Vec<RegionScratch>>,
 }
 
 /// What one look of cap detection found, for [`CapCandidates::new`].
@@ -207,6 +210,7 @@ impl CapSearch {
     pub fn new(mesh: &Mesh, topology: &Topology) -> CapSearch {
         CapSearch {
             adjacency: FaceNeighbours::build(mesh, topology),
+            scratch: std::sync::Mutex::new(Vec::new()),
         }
     }
 
@@ -216,7 +220,7 @@ impl CapSearch {
         CapLook(caps_of(
             turns,
             topology,
-            &self.adjacency,
+            (&self.adjacency, &self.scratch),
             params,
             f32::INFINITY,
         ))
@@ -239,7 +243,7 @@ impl CapSearch {
             CapLook(caps_of(
                 &TurnLimits::new(&copy, topology),
                 topology,
-                &self.adjacency,
+                (&self.adjacency, &self.scratch),
                 params,
                 params.smoothed_copy_flat_deg_per_mm,
             ))
@@ -320,10 +324,19 @@ fn low_pass(mesh: &Mesh, topology: &Topology, iterations: usize) -> Vec<[f32; 3]
         .windows(2)
         .map(|w| if w[0] == w[1] { 0.0 } else { 1.0 })
         .collect();
-    for (e, &n) in topology.edges().iter().zip(topology.edge_n_faces()) {
-        if n != 2 {
-            scale[e[0] as usize] = 0.0;
-            scale[e[1] as usize] = 0.0;
+    // Edges in the order of their face counts, without listing them; none to look at on a
+    // closed manifold.
+    let counts = topology.edge_n_faces();
+    if counts.iter().any(|&n| n != 2) {
+        let mut e = 0;
+        for v in 0..topology.n_vertices() {
+            for &u in topology.larger_neighbors(v) {
+                if counts[e] != 2 {
+                    scale[v] = 0.0;
+                    scale[u as usize] = 0.0;
+                }
+                e += 1;
+            }
         }
     }
     let rows = NeighbourLists::new(offsets, neighbors, None);
@@ -341,7 +354,7 @@ fn low_pass(mesh: &Mesh, topology: &Topology, iterations: usize) -> Vec<[f32; 3]
 fn caps_of(
     turns: &TurnLimits,
     topology: &Topology,
-    adjacency: &FaceNeighbours,
+    (adjacency, scratch_pool): (&FaceNeighbours, &std::sync::Mutex<Vec<RegionScratch>>),
     params: &CapParams,
     flat_deg_per_mm: f32,
 ) -> Look {
@@ -422,28 +435,18 @@ fn caps_of(
     // A grown region's verdict depends only on its faces (a face goes to the first region
     // that reaches it), so all regions are grown first, then examined side by side (a large
     // one with its large steps in parallel too) and counted in order.
-    let scratch_pool = std::sync::Mutex::new(Vec::new());
     let verdicts: Vec<Verdict> = kept
         .par_iter()
-        .enumerate()
-        .map(|(id, faces)| {
+        .map(|faces| {
             let taken = scratch_pool.lock().map(|mut pool| pool.pop());
-            let (mut stamp, mut reached) = taken.ok().flatten().unwrap_or_else(|| {
-                (
-                    vec![(NONE, 0); mesh.n_vertices()],
-                    Reached::new(mesh.n_vertices()),
-                )
-            });
-            let verdict = examine_region(
-                mesh,
-                topology,
-                normals,
-                (id as u32, faces),
-                (&mut stamp, &mut reached),
-                params,
-            );
+            let mut scratch = taken
+                .ok()
+                .flatten()
+                .filter(|s| s.stamp.len() == mesh.n_vertices())
+                .unwrap_or_else(|| RegionScratch::new(mesh.n_vertices()));
+            let verdict = examine_region(mesh, topology, normals, faces, &mut scratch, params);
             if let Ok(mut pool) = scratch_pool.lock() {
-                pool.push((stamp, reached));
+                pool.push(scratch);
             }
             verdict
         })
@@ -473,17 +476,49 @@ enum Verdict {
     Other,
 }
 
-/// The checks of [`caps_of`] on one grown region `id` (its `faces`; `stamp`, one per vertex,
-/// is scratch passed between regions and never holds `id` before; `reached` is the outward
-/// search's scratch).
+/// Per-vertex scratch passed between the regions [`examine_region`] looks at, so that a
+/// region costs what its vertices cost, not the mesh's size.
+struct RegionScratch {
+    /// Per vertex: the tag of the last region that stamped it, and that region's faces there.
+    stamp: Vec<(u32, u32)>,
+    /// The last tag handed out (tags only grow, so no vertex holds a new region's tag).
+    tag: u32,
+    /// The outward search's distances.
+    reached: Reached,
+}
+
+impl RegionScratch {
+    fn new(n_vertices: usize) -> Self {
+        Self {
+            stamp: vec![(NONE, 0); n_vertices],
+            tag: 0,
+            reached: Reached::new(n_vertices),
+        }
+    }
+
+    /// A tag no vertex holds yet (all stamps cleared once every 2^32 - 2 regions).
+    fn next_tag(&mut self) -> u32 {
+        if self.tag == NONE - 1 {
+            self.stamp.fill((NONE, 0));
+            self.tag = 0;
+        }
+        self.tag += 1;
+        self.tag
+    }
+}
+
+/// The checks of [`caps_of`] on one grown region (its `faces`), with scratch passed between
+/// regions.
 fn examine_region(
     mesh: &Mesh,
     topology: &Topology,
     normals: &[[f32; 3]],
-    (id, faces): (u32, &[u32]),
-    (stamp, reached): (&mut [(u32, u32)], &mut Reached),
+    faces: &[u32],
+    scratch: &mut RegionScratch,
     params: &CapParams,
 ) -> Verdict {
+    let id = scratch.next_tag();
+    let RegionScratch { stamp, reached, .. } = scratch;
     let (tris, p) = (mesh.triangles(), mesh.positions());
     // The region's vertices, each stamped with its id once (no sort of every corner and no
     // search per lookup: a region can be the whole of a finely sampled surface), with the
