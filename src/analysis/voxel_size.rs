@@ -133,13 +133,22 @@ fn count_offsets(
     let merged = chunks
         .into_par_iter()
         .fold(fresh, |mut counts, chunk| {
-            for (k, slot) in counts.iter_mut().enumerate() {
-                let Some(map) = slot else { continue };
-                for e in chunk.clone().flat_map(edges_of) {
+            // The first few distinct offsets of each axis are counted in a short list (a mesh
+            // on a grid has few: no hashing per edge), the rest in the map.
+            let mut few = [FewOffsets::default(); 3];
+            for e in chunk.flat_map(edges_of) {
+                for (k, (slot, few)) in counts.iter_mut().zip(&mut few).enumerate() {
+                    let Some(map) = slot else { continue };
                     let d = offset(e, k);
-                    if d > zero_tol[k] {
+                    if d > zero_tol[k] && !few.count(d.to_bits()) {
                         *map.entry(d.to_bits()).or_insert(0) += 1;
                     }
+                }
+            }
+            for (slot, few) in counts.iter_mut().zip(&few) {
+                let Some(map) = slot else { continue };
+                for &(bits, n) in few.listed() {
+                    *map.entry(bits).or_insert(0) += n;
                 }
                 if map.len() > MAX_DISTINCT {
                     *slot = None;
@@ -171,6 +180,33 @@ fn count_offsets(
             distinct
         })
     })
+}
+
+/// Up to eight distinct offsets (their bits) with how often each occurred.
+#[derive(Debug, Clone, Copy, Default)]
+struct FewOffsets {
+    listed: [(u64, usize); 8],
+    len: usize,
+}
+
+impl FewOffsets {
+    /// Counts `bits` if it is listed or there is room to list it; false if it is not counted.
+    fn count(&mut self, bits: u64) -> bool {
+        if let Some(entry) = self.listed[..self.len].iter_mut().find(|e| e.0 == bits) {
+            entry.1 += 1;
+            return true;
+        }
+        if self.len < self.listed.len() {
+            self.listed[self.len] = (bits, 1);
+            self.len += 1;
+            return true;
+        }
+        false
+    }
+
+    fn listed(&self) -> &[(u64, usize)] {
+        &self.listed[..self.len]
+    }
 }
 
 /// Classifies one axis from its sorted non-zero edge offsets.
