@@ -1,6 +1,7 @@
 //! Mesh connectivity, built once per mesh: CSR vertex->vertex and vertex->face adjacency, the
-//! edges' face counts (the edge list itself on first request), and the findings `inspect` reports (boundary loops, non-manifold edges and
-//! vertices, orientation consistency, connected components, Euler characteristic).
+//! edges' face counts (the edge list itself on first request), and the findings `inspect`
+//! reports (boundary loops, non-manifold edges and vertices, orientation consistency,
+//! connected components, Euler characteristic).
 //!
 //! Triangles with a repeated vertex index are degenerate: they are listed and left out of all
 //! adjacency, since they have no well-defined edges or normal.
@@ -110,7 +111,8 @@ impl Topology {
         // faces, which give its sorted neighbours, the edges it owns (those to larger vertices)
         // with their face counts and orientation, and its fans. A wave's blocks are appended in
         // order while the next wave is found, so the blocks' buffers are two waves' worth,
-        // reused (fresh pages cost a fault each; a copy of every block did half of the build's).
+        // reused (fresh pages cost a fault each: a buffer per block, copied into the joined
+        // lists, made half of the build's faults).
         let blocks = vertex_blocks(n);
         let waves: Vec<&[Range<usize>]> = blocks.chunks(WAVE_BLOCKS).collect();
         let mut joined = Joined::with_capacity(n, vf_faces.len());
@@ -142,13 +144,16 @@ impl Topology {
         drop((front, back));
         let Joined {
             vv_offsets,
-            vv_neighbors,
-            edge_n_faces,
+            mut vv_neighbors,
+            mut edge_n_faces,
             non_manifold_edges,
             inconsistent_edges,
             boundary_edges,
             non_manifold_vertices,
         } = joined;
+        // Give back the reserve's untouched address space (large buffers shrink in place).
+        vv_neighbors.shrink_to_fit();
+        edge_n_faces.shrink_to_fit();
 
         let unreferenced_vertices: Vec<u32> = (0..n)
             .filter(|&v| vf_offsets[v] == vf_offsets[v + 1])
@@ -472,7 +477,8 @@ impl BlockTopology {
     }
 }
 
-/// The blocks' lists joined in vertex order: global CSR and edge arrays, edge indices global.
+/// The blocks' lists joined in vertex order: the global neighbour CSR and edge face counts,
+/// edge indices global.
 struct Joined {
     vv_offsets: Vec<u32>,
     vv_neighbors: Vec<u32>,

@@ -215,7 +215,7 @@ pub fn context_in_mesh_order(
     let estimates_axis = params.staircase && params.axis == AxisChoice::Auto;
     if params.caps == CapPolicy::Smooth && !params.find_smoothed_caps {
         // The staircases alone (caps are not looked for).
-        let (estimated_axis, axis, staircase) = if params.staircase {
+        let stairs = if params.staircase {
             let mut turns = TurnLimits::new(mesh, topology);
             if estimates_axis {
                 turns.remember(&axis_limits);
@@ -224,13 +224,12 @@ pub fn context_in_mesh_order(
         } else {
             (None, None, None)
         };
-        let caps = CapDetection::not_searched();
         return weighted(
             mesh,
             params,
             references,
-            (estimated_axis, axis, staircase),
-            caps,
+            stairs,
+            CapDetection::not_searched(),
         );
     }
     // Cap detection's look at a smoothed copy is mostly serial (flood fills, growth): it starts
