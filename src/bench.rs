@@ -99,6 +99,19 @@ pub struct IoBench {
     pub stl_read_s: f64,
     pub write_mb_per_s: f64,
     pub read_mmap_mb_per_s: f64,
+    /// Whole `smooth` processes on the file (start to exit, reading and writing included),
+    /// when an executable was given.
+    pub smooth_process: Option<SmoothProcess>,
+}
+
+/// Seconds of whole `destair smooth` processes on the benchmark file, Laplace 20 iterations
+/// (best run): as users run it, page faults and process exit included.
+#[derive(Debug, Serialize)]
+pub struct SmoothProcess {
+    /// `--staircase false --caps smooth`: the smoother alone (no context analysis).
+    pub plain_s: f64,
+    /// Default settings: staircase weights and caps preserved (the context analysis).
+    pub context_s: f64,
 }
 
 /// Which generated mesh a benchmark runs on.
@@ -112,13 +125,15 @@ pub enum BenchMesh {
 }
 
 /// Generates a mesh of about `triangles` triangles, writes it as binary PLY in `dir`, then
-/// times write, read+validate (mmap and plain read) and topology build, then STL write and read.
+/// times write, read+validate (mmap and plain read) and topology build, whole `smooth`
+/// processes of `destair` (the executable, when given), then STL write and read.
 pub fn io(
     dir: &Path,
     triangles: usize,
     kind: BenchMesh,
     shuffle: bool,
     repeat: usize,
+    destair: Option<&Path>,
 ) -> anyhow::Result<IoBench> {
     let mesh = match kind {
         BenchMesh::Torus => {
@@ -161,6 +176,10 @@ pub fn io(
         topology.is_closed_oriented_manifold(),
         "bench mesh is not a closed manifold"
     );
+    let smooth_process = match destair {
+        Some(exe) => Some(smooth_processes(exe, &path, repeat)?),
+        None => None,
+    };
     std::fs::remove_file(&path)?;
     let stl = dir.join("bench-io.stl");
     let (stl_write_s, written) = best_of(repeat, || write_stl(&stl, &mesh, &meta));
@@ -186,7 +205,47 @@ pub fn io(
         stl_read_s,
         write_mb_per_s: mb / write_s,
         read_mmap_mb_per_s: mb / read_mmap_s,
+        smooth_process,
     })
+}
+
+/// Times `exe smooth` on `input` as a child process (same thread count as this one), plain and
+/// with the default context; the output goes beside the input and is removed.
+fn smooth_processes(exe: &Path, input: &Path, repeat: usize) -> anyhow::Result<SmoothProcess> {
+    let output = input.with_file_name("bench-io-smoothed.ply");
+    let threads = rayon::current_num_threads().to_string();
+    let run = |extra: &[&str]| -> anyhow::Result<f64> {
+        let (seconds, status) = best_of(repeat, || {
+            std::process::Command::new(exe)
+                .arg("smooth")
+                .arg(input)
+                .arg("-o")
+                .arg(&output)
+                .args([
+                    "--method",
+                    "laplace",
+                    "--iterations",
+                    "20",
+                    "--threads",
+                    &threads,
+                ])
+                .args(extra)
+                .stdout(std::process::Stdio::null())
+                .stderr(std::process::Stdio::null())
+                .status()
+        });
+        let status = status?;
+        anyhow::ensure!(
+            status.success(),
+            "bench: {} smooth failed: {status}",
+            exe.display()
+        );
+        Ok(seconds)
+    };
+    let plain_s = run(&["--staircase", "false", "--caps", "smooth"])?;
+    let context_s = run(&[])?;
+    std::fs::remove_file(&output)?;
+    Ok(SmoothProcess { plain_s, context_s })
 }
 
 /// One smoother's timing in `destair bench smooth`.

@@ -217,7 +217,9 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
                 MeshArg::Phantom => destair::bench::BenchMesh::Phantom,
                 MeshArg::Torus => destair::bench::BenchMesh::Torus,
             };
-            let r = destair::bench::io(&dir, triangles, kind, shuffle, repeat)?;
+            // Whole smooth processes of this very executable.
+            let exe = std::env::current_exe()?;
+            let r = destair::bench::io(&dir, triangles, kind, shuffle, repeat, Some(&exe))?;
             if json {
                 println!("{}", serde_json::to_string_pretty(&r)?);
                 return Ok(());
@@ -241,6 +243,12 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
                 r.write_s, r.write_mb_per_s
             );
             println!("  topology build        {:.4} s", r.topology_s);
+            if let Some(p) = &r.smooth_process {
+                println!(
+                    "  smooth, whole process (Laplace 20): {:.4} s plain (--staircase false --caps smooth), {:.4} s with the default context",
+                    p.plain_s, p.context_s
+                );
+            }
             println!(
                 "  STL ({:.1} MB) write  {:.4} s, read+weld {:.4} s",
                 r.stl_file_bytes as f64 / 1e6,
