@@ -91,6 +91,11 @@ fn bench_io_runs_small() {
     let n = json["n_triangles"].as_u64().unwrap();
     assert!((19_000..=21_000).contains(&n), "{n}");
     assert!(json["read_mmap_s"].as_f64().unwrap() > 0.0);
+    // Whole smooth processes ran (plain and with the context) and left no file behind.
+    let process = &json["smooth_process"];
+    assert!(process["plain_s"].as_f64().unwrap() > 0.0, "{process}");
+    assert!(process["context_s"].as_f64().unwrap() > 0.0, "{process}");
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
 }
 
 /// `bench context --shuffle` renumbers the vertices only: the same surface, so the same query
