@@ -214,33 +214,32 @@ pub fn io(
 fn smooth_processes(exe: &Path, input: &Path, repeat: usize) -> anyhow::Result<SmoothProcess> {
     let output = input.with_file_name("bench-io-smoothed.ply");
     let threads = rayon::current_num_threads().to_string();
+    // Every run is checked; a failed one reports the child's error output.
     let run = |extra: &[&str]| -> anyhow::Result<f64> {
-        let (seconds, status) = best_of(repeat, || {
-            std::process::Command::new(exe)
+        let mut best = f64::INFINITY;
+        for _ in 0..repeat.max(1) {
+            let started = Instant::now();
+            let out = std::process::Command::new(exe)
                 .arg("smooth")
                 .arg(input)
                 .arg("-o")
                 .arg(&output)
-                .args([
-                    "--method",
-                    "laplace",
-                    "--iterations",
-                    "20",
-                    "--threads",
-                    &threads,
-                ])
+                .args(["--method", "laplace", "--iterations", "20"])
+                .args(["--threads", &threads])
                 .args(extra)
-                .stdout(std::process::Stdio::null())
-                .stderr(std::process::Stdio::null())
-                .status()
-        });
-        let status = status?;
-        anyhow::ensure!(
-            status.success(),
-            "bench: {} smooth failed: {status}",
-            exe.display()
-        );
-        Ok(seconds)
+                .output()?;
+            best = best.min(started.elapsed().as_secs_f64());
+            if !out.status.success() {
+                let _ = std::fs::remove_file(&output);
+                anyhow::bail!(
+                    "bench: {} smooth failed ({}): {}",
+                    exe.display(),
+                    out.status,
+                    String::from_utf8_lossy(&out.stderr).trim()
+                );
+            }
+        }
+        Ok(best)
     };
     let plain_s = run(&["--staircase", "false", "--caps", "smooth"])?;
     let context_s = run(&[])?;
