@@ -320,25 +320,10 @@ impl CapCandidates {
 fn low_pass(mesh: &Mesh, topology: &Topology, iterations: usize) -> Vec<[f32; 3]> {
     let (offsets, neighbors) = topology.neighbor_csr();
     // Step scale 1, or 0 where a vertex stays: on a rim or non-manifold edge, or isolated.
-    let mut scale: Vec<f32> = offsets
-        .windows(2)
-        .map(|w| if w[0] == w[1] { 0.0 } else { 1.0 })
+    let irregular = topology.on_irregular_edge();
+    let scale: Vec<f32> = (offsets.windows(2).zip(irregular))
+        .map(|(w, stays)| if w[0] == w[1] || stays { 0.0 } else { 1.0 })
         .collect();
-    // Edges in the order of their face counts, without listing them; none to look at on a
-    // closed manifold.
-    let counts = topology.edge_n_faces();
-    if counts.iter().any(|&n| n != 2) {
-        let mut e = 0;
-        for v in 0..topology.n_vertices() {
-            for &u in topology.larger_neighbors(v) {
-                if counts[e] != 2 {
-                    scale[v] = 0.0;
-                    scale[u as usize] = 0.0;
-                }
-                e += 1;
-            }
-        }
-    }
     let rows = NeighbourLists::new(offsets, neighbors, None);
     let mut a = padded(mesh.positions());
     let mut b = copied(&a);

@@ -247,6 +247,28 @@ impl Topology {
         &list[list.partition_point(|&u| u <= vertex_idx as u32)..]
     }
 
+    /// Per vertex: it ends an edge without exactly two faces (a rim or non-manifold edge).
+    /// Walks the edges in the order of their face counts without listing them; all false at
+    /// once on a closed manifold.
+    pub fn on_irregular_edge(&self) -> Vec<bool> {
+        let mut on = vec![false; self.n_vertices()];
+        let counts = &self.edge_n_faces;
+        if counts.iter().all(|&n| n == 2) {
+            return on;
+        }
+        let mut e = 0;
+        for v in 0..self.n_vertices() {
+            for &u in self.larger_neighbors(v) {
+                if counts[e] != 2 {
+                    on[v] = true;
+                    on[u as usize] = true;
+                }
+                e += 1;
+            }
+        }
+        on
+    }
+
     /// Number of triangles on each edge of [`Topology::edges`] (1 boundary, 2 manifold, more non-manifold).
     pub fn edge_n_faces(&self) -> &[u32] {
         &self.edge_n_faces

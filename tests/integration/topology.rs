@@ -84,6 +84,14 @@ fn assert_matches_brute_force(mesh: &Mesh) {
         .map(|(i, _)| i as u32)
         .collect();
     assert_eq!(topo.non_manifold_edges(), non_manifold.as_slice());
+    let mut irregular = vec![false; mesh.n_vertices()];
+    for (&[a, b], &c) in keys.iter().zip(&counts) {
+        if c != 2 {
+            irregular[a as usize] = true;
+            irregular[b as usize] = true;
+        }
+    }
+    assert_eq!(topo.on_irregular_edge(), irregular);
     let n = mesh.n_vertices();
     let mut neighbours = vec![BTreeSet::new(); n];
     for &[a, b] in &keys {
