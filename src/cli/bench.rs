@@ -158,7 +158,7 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
                     t.seconds,
                     match t.renumbering_seconds {
                         Some(r) => format!(
-                            " (scattered: run in scanline order, renumbering and back {r:.4} s of it)"
+                            " (scattered: run in scanline order; renumbering after reading and back before writing {r:.4} s besides)"
                         ),
                         None => String::new(),
                     },

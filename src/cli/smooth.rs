@@ -200,7 +200,16 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         ),
         None => None,
     };
-    let loaded = read_input(&input, &ReadOptions::default())?;
+    let mut loaded = read_input(&input, &ReadOptions::default())?;
+    // A scattered numbering is worked in scanline order, as a cohort run does, and written back
+    // in the file's (the cfd profile keeps the file's: its outputs are new surfaces).
+    let renumbering = match cfd {
+        None => destair::mesh::order::working_numbering(&loaded.mesh),
+        Some(_) => None,
+    };
+    if let Some(r) = &renumbering {
+        loaded.mesh = r.mesh(&loaded.mesh);
+    }
     let mesh = &loaded.mesh;
     let topology = destair::Topology::build(mesh);
     let stem = output
@@ -291,8 +300,12 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
                     UsageError(format!("{}: no vertex property 'weight'", path.display()))
                 })?
                 .values;
-            destair::weights::VertexWeights::new(values, mesh.n_vertices())
-                .map_err(|e| UsageError(format!("{}: {e}", path.display())))?
+            let w = destair::weights::VertexWeights::new(values, mesh.n_vertices())
+                .map_err(|e| UsageError(format!("{}: {e}", path.display())))?;
+            match &renumbering {
+                Some(r) => w.gathered(r),
+                None => w,
+            }
         }
     };
     let mut fixed = if move_boundary {
@@ -314,6 +327,7 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         &positions,
         max_displacement_voxels,
         destair::smooth::displacement_unit(mesh, &topology, voxel),
+        renumbering.as_ref(),
     )
     .map_err(|m| Rejected(format!("{}: {m}; nothing written", input.display())))?;
     // VTP always carries the arrays (it is the viewers' format); PLY with --annotate.
@@ -332,17 +346,27 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
                 .map_err(|e| Rejected(format!("{}: {e}; nothing written", input.display())))?;
             (done.mesh.clone(), Some(done))
         }
-        // The input's own faces take the new positions: no copy of every face.
+        // The input's own faces take the new positions: no copy of every face (but for a
+        // renumbered input, which goes back to the file's numbering).
         _ => {
             let mut smoothed = loaded.mesh;
             smoothed.positions_mut().copy_from_slice(&positions);
-            (smoothed, None)
+            match &renumbering {
+                Some(r) => (r.restore(&smoothed), None),
+                None => (smoothed, None),
+            }
         }
     };
-    let arrays: Vec<(&str, &[f32])> = match &lengths {
-        Some(lengths) => vec![("weight", weights.as_slice()), ("displacement", lengths)],
-        None => Vec::new(),
-    };
+    let mut named: Vec<(&str, Vec<f32>)> = Vec::new();
+    if let Some(lengths) = lengths {
+        named = vec![("weight", weights.into_inner()), ("displacement", lengths)];
+        if let Some(r) = &renumbering {
+            for (_, values) in &mut named {
+                *values = r.scatter(values);
+            }
+        }
+    }
+    let arrays: Vec<(&str, &[f32])> = named.iter().map(|(n, v)| (*n, v.as_slice())).collect();
     destair::io::write_annotated(&output, &smoothed, &loaded.meta, &arrays, "displacement")?;
     println!(
         "{} {}: {} iterations{} in {:.3} s, last step {:.5} mm, {} vertices fixed -> {}",

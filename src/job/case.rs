@@ -11,6 +11,7 @@ use super::label_map::{
 use super::pictures::PictureInput;
 use super::plan::{Plan, StructureSettings};
 use crate::io::{decode_mesh, extension, with_file_bytes, LoadedMesh, OutputFormat, ReadOptions};
+use crate::mesh::order::Renumbering;
 use crate::mesh::{Mesh, Topology};
 use crate::report::case::{CaseReport, CfdReport, InputInfo, StructureReport, SCHEMA_VERSION};
 use crate::report::compare::compare_prepared;
@@ -36,6 +37,9 @@ pub struct LoadedFile {
     /// For a constrained label surface, the binary extraction with the same triangles: the
     /// "before" of its metrics.
     pub binary: Option<Mesh>,
+    /// For a file whose numbering is scattered, the scanline order its mesh was renumbered to
+    /// after reading (every pass runs in it); outputs go back to the file's numbering.
+    pub renumbering: Option<Renumbering>,
 }
 
 /// A case with its files in memory.
@@ -90,16 +94,24 @@ pub fn load_case(plan: &Plan, input: CaseInput) -> LoadedCase {
                     decode_mesh(b, ext.as_deref(), &options),
                 )
             }) {
-                Ok((bytes, blake3, mesh)) => LoadedFile {
-                    structure: structure.clone(),
-                    file,
-                    bytes,
-                    blake3,
-                    mesh: mesh.map_err(|e| format!("{}: {e}", plan.display(path))),
-                    place: Place::World,
-                    source: None,
-                    binary: None,
-                },
+                Ok((bytes, blake3, mesh)) => {
+                    let mut mesh = mesh.map_err(|e| format!("{}: {e}", plan.display(path)));
+                    let renumbering = match &mut mesh {
+                        Ok(loaded) => in_working_numbering(plan, structure, loaded),
+                        Err(_) => None,
+                    };
+                    LoadedFile {
+                        structure: structure.clone(),
+                        file,
+                        bytes,
+                        blake3,
+                        mesh,
+                        place: Place::World,
+                        source: None,
+                        binary: None,
+                        renumbering,
+                    }
+                }
                 Err(e) => LoadedFile {
                     structure: structure.clone(),
                     file,
@@ -109,6 +121,7 @@ pub fn load_case(plan: &Plan, input: CaseInput) -> LoadedCase {
                     place: Place::World,
                     source: None,
                     binary: None,
+                    renumbering: None,
                 },
             }
         })
@@ -125,6 +138,22 @@ pub fn load_case(plan: &Plan, input: CaseInput) -> LoadedCase {
         label_maps,
         key,
     }
+}
+
+/// Renumbers a mesh file whose numbering is scattered into its working numbering, as
+/// `destair smooth` does (so both write the same bytes), unless the structure has the cfd
+/// profile, whose outputs are new surfaces. Returns the renumbering, for writing back.
+fn in_working_numbering(
+    plan: &Plan,
+    structure: &str,
+    loaded: &mut LoadedMesh,
+) -> Option<Renumbering> {
+    if plan.settings_for(structure).cfd.is_some() {
+        return None;
+    }
+    let r = crate::mesh::order::working_numbering(&loaded.mesh)?;
+    loaded.mesh = r.mesh(&loaded.mesh);
+    Some(r)
 }
 
 fn resume_key(
@@ -225,6 +254,7 @@ pub fn process_case(plan: &Plan, case: LoadedCase) -> CaseOutput {
                     place: st.place,
                     source: Some(st.source),
                     binary: st.binary,
+                    renumbering: None,
                 });
             }
         }
@@ -531,7 +561,10 @@ fn process_structure(
                 .push("skip = true: copied unchanged, without the cfd profile".into());
         }
         let world = in_world(&place, mesh).into_owned();
-        let out = encode(plan, &plan.formats, stem, &world, loaded, &[]);
+        let out = match &file.renumbering {
+            Some(r) => encode(plan, &plan.formats, stem, &r.restore(&world), loaded, &[]),
+            None => encode(plan, &plan.formats, stem, &world, loaded, &[]),
+        };
         *surfaces = Some(Surfaces {
             before: world.clone(),
             after: world,
@@ -683,6 +716,7 @@ fn process_structure(
             &positions,
             settings.max_displacement_voxels,
             crate::smooth::displacement_unit(mesh, &topology, voxel),
+            file.renumbering.as_ref(),
         )?;
         (positions, Some(ctx))
     } else {
@@ -771,9 +805,28 @@ fn process_structure(
     };
     report.displacement_histogram = Some(crate::report::pictures::histogram(&displacement));
     arrays.push(("displacement", displacement));
-    let named: Vec<(&str, &[f32])> = arrays.iter().map(|(n, v)| (*n, v.as_slice())).collect();
     let smoothed_world = in_world(&place, &smoothed).into_owned();
-    let out = encode(plan, &plan.formats, stem, &smoothed_world, loaded, &named)?;
+    // Written as the file numbers its vertices.
+    let out = match &file.renumbering {
+        Some(r) => {
+            let back: Vec<(&str, Vec<f32>)> =
+                arrays.iter().map(|(n, v)| (*n, r.scatter(v))).collect();
+            let named: Vec<(&str, &[f32])> = back.iter().map(|(n, v)| (*n, v.as_slice())).collect();
+            encode(
+                plan,
+                &plan.formats,
+                stem,
+                &r.restore(&smoothed_world),
+                loaded,
+                &named,
+            )?
+        }
+        None => {
+            let named: Vec<(&str, &[f32])> =
+                arrays.iter().map(|(n, v)| (*n, v.as_slice())).collect();
+            encode(plan, &plan.formats, stem, &smoothed_world, loaded, &named)?
+        }
+    };
     report.status = "ok".into();
     // Pictures are drawn once the guard is done; a label surface's pictures start from its
     // binary extraction, which the displacements are measured from.

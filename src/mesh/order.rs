@@ -8,6 +8,9 @@
 //! - [`scanline`]: a renumbering in rows of cells, for iterated kernels on meshes whose
 //!   numbering [`is_scattered`]; gathering and scattering through it is exact, so a kernel gives
 //!   bit-identical results in either numbering.
+//! - [`working_numbering`]: the same from a mesh's faces alone, applied once after reading by
+//!   `smooth` and cohort runs so that every pass (topology, context, smoothing) runs in it;
+//!   [`Renumbering::restore`] puts the result back in the file's numbering for writing.
 
 use super::Mesh;
 use rayon::prelude::*;
@@ -167,6 +170,62 @@ pub struct Renumbering {
 /// per vertex (16-25 ms for 480 K vertices on 2 cores); ties keep the old order,
 /// so it is the same for any thread count.
 pub fn scanline(positions: &[[f32; 3]], offsets: &[u32], neighbors: &[u32]) -> Renumbering {
+    scanline_in_cells(positions, sampled_mean_edge(positions, offsets, neighbors))
+}
+
+/// Whether more than a tenth of the edges of every 16th face join vertices further than
+/// 32,768 apart in the numbering: [`is_scattered`] read from the faces, before any adjacency
+/// is built.
+pub fn faces_scattered(triangles: &[[u32; 3]]) -> bool {
+    let (far, all) = (0..triangles.len().div_ceil(SAMPLE))
+        .into_par_iter()
+        .with_min_len(1024)
+        .map(|k| {
+            let t = triangles[k * SAMPLE];
+            let far = (0..3).filter(|&i| t[i].abs_diff(t[(i + 1) % 3]) > NEAR);
+            (far.count(), 3)
+        })
+        .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+    far * 10 > all
+}
+
+/// Mean length (mm) of the first edges of about 4096 faces spread over the face list; 1 when
+/// none has a positive finite length (out-of-range indices are skipped).
+fn sampled_mean_face_edge(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> f64 {
+    let (mut total, mut count) = (0.0f64, 0usize);
+    for t in triangles.iter().step_by((triangles.len() / 4096).max(1)) {
+        let (Some(p), Some(q)) = (positions.get(t[0] as usize), positions.get(t[1] as usize))
+        else {
+            continue;
+        };
+        let d = (0..3)
+            .map(|k| f64::from(p[k] - q[k]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        if d.is_finite() && d > 0.0 {
+            total += d;
+            count += 1;
+        }
+    }
+    if count > 0 {
+        total / count as f64
+    } else {
+        1.0
+    }
+}
+
+/// The numbering a mesh is best worked in: `None` when its own numbering is local enough (as
+/// marching cubes and flying edges write it), else the [`scanline`] order, with cells of the
+/// mean edge length sampled from the faces. Reading it from the faces makes it the same
+/// whichever command asks, before any topology is built.
+pub fn working_numbering(mesh: &Mesh) -> Option<Renumbering> {
+    let (positions, triangles) = (mesh.positions(), mesh.triangles());
+    faces_scattered(triangles)
+        .then(|| scanline_in_cells(positions, sampled_mean_face_edge(positions, triangles)))
+}
+
+/// [`scanline`] with rows of cells `cell` mm high.
+fn scanline_in_cells(positions: &[[f32; 3]], cell: f64) -> Renumbering {
     let mut lo = [f32::INFINITY; 3];
     for p in positions {
         for k in 0..3 {
@@ -175,7 +234,6 @@ pub fn scanline(positions: &[[f32; 3]], offsets: &[u32], neighbors: &[u32]) -> R
             }
         }
     }
-    let cell = sampled_mean_edge(positions, offsets, neighbors);
     let top = (1u64 << BITS) - 1;
     let cell_of = |x: f32, k: usize, size: f64| {
         let t = (f64::from(x) - f64::from(lo[k])) / size;
@@ -215,6 +273,17 @@ impl Renumbering {
             .map(|t| t.map(|v| self.new[v as usize]))
             .collect();
         Mesh::from_checked_parts(self.gather(mesh.positions()), triangles)
+    }
+
+    /// A mesh of the new numbering (a [`Renumbering::mesh`], its positions perhaps changed)
+    /// back in the old one: the file's numbering and faces, to the bit.
+    pub fn restore(&self, mesh: &Mesh) -> Mesh {
+        let triangles = mesh
+            .triangles()
+            .par_iter()
+            .map(|t| t.map(|i| self.old[i as usize]))
+            .collect();
+        Mesh::from_checked_parts(self.scatter(mesh.positions()), triangles)
     }
 
     /// Per-vertex values in the new numbering.

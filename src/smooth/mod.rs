@@ -539,16 +539,22 @@ pub fn displacement_unit(
 
 /// Rejects a smoothing result that cannot be trusted: a non-finite coordinate, or a vertex moved
 /// further than `max_units` times `unit` mm (see [`displacement_unit`]). The message names the
-/// first such vertex and what to change.
+/// first such vertex (by its number in the file, for a mesh worked in a `renumbering`) and what
+/// to change.
 pub fn check_result(
     original: &[[f32; 3]],
     smoothed: &[[f32; 3]],
     max_units: f32,
     (unit_mm, unit_name): (f64, &str),
+    renumbering: Option<&Renumbering>,
 ) -> Result<(), String> {
     use crate::units::readable;
     let limit = max_units as f64 * unit_mm;
-    for (v, (a, b)) in original.iter().zip(smoothed).enumerate() {
+    for (i, (a, b)) in original.iter().zip(smoothed).enumerate() {
+        // Messages name the vertex as the file numbers it.
+        let v = renumbering
+            .and_then(|r| r.old.get(i))
+            .map_or(i, |&o| o as usize);
         if b.iter().any(|c| !c.is_finite()) {
             return Err(format!(
                 "smoothing diverged: vertex {v} has a non-finite coordinate; lower lambda or the iterations"

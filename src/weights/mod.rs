@@ -89,6 +89,11 @@ impl VertexWeights {
         VertexWeights(order.scatter(&self.0))
     }
 
+    /// The weights in the numbering `order` gives (the inverse of [`VertexWeights::scattered`]).
+    pub fn gathered(&self, order: &crate::mesh::order::Renumbering) -> VertexWeights {
+        VertexWeights(order.gather(&self.0))
+    }
+
     /// The weights as a plain vector.
     pub fn into_inner(self) -> Vec<f32> {
         self.0

@@ -680,3 +680,109 @@ fn smooth_gives_the_cohort_runs_bytes_for_the_same_settings() {
         }
     }
 }
+
+/// A file whose vertex numbering is scattered is worked in scanline order and written back in
+/// its own numbering: `smooth` and a cohort run write the same bytes, the faces are the file's,
+/// the annotations belong to the file's vertices, and the surface is the one the unscattered
+/// file gives, to float rounding.
+#[test]
+fn a_scattered_numbering_is_worked_in_scanline_order_and_written_back() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path();
+    // A stair-stepped blob of about 75 k vertices: enough that a shuffle scatters it.
+    let case = destair::phantom::big_case(150_000, &Default::default());
+    let plain = case.meshes.into_iter().next().unwrap().1;
+    let old = destair::bench::permutation(plain.n_vertices(), 3);
+    let shuffled = destair::bench::renumbered(&plain, &old);
+    assert!(destair::mesh::order::working_numbering(&plain).is_none());
+    assert!(destair::mesh::order::working_numbering(&shuffled).is_some());
+    let meta = destair::io::MeshMeta::default();
+    std::fs::create_dir_all(root.join("cases/c1")).unwrap();
+    let input = root.join("cases/c1/blob.ply");
+    destair::io::ply::write_ply(&input, &shuffled, &meta, &[]).unwrap();
+    let plain_path = root.join("plain.ply");
+    destair::io::ply::write_ply(&plain_path, &plain, &meta, &[]).unwrap();
+    std::fs::write(
+        root.join("c.toml"),
+        "[input]\nroots = [\"cases\"]\ncase_depth = 1\n\n[output]\nroot = \"out\"\n",
+    )
+    .unwrap();
+    destair_ok(&["run", root.join("c.toml").to_str().unwrap()]);
+    let smooth = |from: &std::path::Path, to: &str, extra: &[&str]| {
+        let out = root.join(to);
+        let mut args = vec![
+            "smooth",
+            from.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend(extra);
+        assert_ok(&destair(&args));
+        out
+    };
+    let single = smooth(&input, "single.ply", &[]);
+    assert!(
+        std::fs::read(root.join("out/c1/blob.ply")).unwrap() == std::fs::read(&single).unwrap()
+    );
+    let read = |p: &std::path::Path| {
+        let options = destair::io::ReadOptions {
+            keep_vertex_properties: true,
+            ..Default::default()
+        };
+        destair::io::read_mesh(p, &options).unwrap()
+    };
+    // The file's faces, and vertex i of the output is vertex i of the file, moved a little.
+    let done = read(&single).mesh;
+    assert!(done.triangles() == shuffled.triangles());
+    let reference = read(&smooth(&plain_path, "plain_out.ply", &[])).mesh;
+    let mut largest = 0.0f32;
+    for (i, &o) in old.iter().enumerate() {
+        let (p, q) = (done.positions()[i], reference.positions()[o as usize]);
+        largest = (0..3).map(|k| (p[k] - q[k]).abs()).fold(largest, f32::max);
+    }
+    // Float rounding of coordinates up to about 100 mm (a few units in the last place).
+    assert!(
+        largest < 1e-4,
+        "the shuffled file's surface differs by {largest} mm"
+    );
+    let moved = done
+        .positions()
+        .iter()
+        .zip(shuffled.positions())
+        .filter(|(p, q)| p != q)
+        .count();
+    assert!(moved > plain.n_vertices() / 10, "{moved} vertices moved");
+    // Annotations: each vertex's displacement is its own.
+    let annotated = read(&smooth(&input, "annotated.ply", &["--annotate"]));
+    let displacement = annotated
+        .vertex_properties
+        .iter()
+        .find(|p| p.name == "displacement")
+        .unwrap();
+    for (i, (p, q)) in annotated
+        .mesh
+        .positions()
+        .iter()
+        .zip(shuffled.positions())
+        .enumerate()
+    {
+        let d = (0..3).map(|k| (p[k] - q[k]).powi(2)).sum::<f32>().sqrt();
+        assert!((d - displacement.values[i]).abs() < 1e-4, "vertex {i}");
+    }
+    // A cohort's annotations too, and its weights are `smooth`'s.
+    std::fs::write(
+        root.join("a.toml"),
+        "[input]\nroots = [\"cases\"]\ncase_depth = 1\n\n[output]\nroot = \"out_a\"\nannotate = true\n",
+    )
+    .unwrap();
+    destair_ok(&["run", root.join("a.toml").to_str().unwrap()]);
+    let cohort = read(&root.join("out_a/c1/blob.ply"));
+    assert!(cohort.mesh.positions() == annotated.mesh.positions());
+    let values = |m: &destair::io::LoadedMesh, name: &str| {
+        let p = m.vertex_properties.iter().find(|p| p.name == name);
+        p.unwrap().values.clone()
+    };
+    for name in ["weight", "displacement"] {
+        assert!(values(&cohort, name) == values(&annotated, name), "{name}");
+    }
+}

@@ -98,3 +98,38 @@ fn scanline_renumbers_a_scattered_torus_and_keeps_every_neighbour_list() {
     let values: Vec<u32> = (0..mesh.n_vertices() as u32).map(|v| v * 7).collect();
     assert_eq!(r.scatter(&r.gather(&values)), values);
 }
+
+#[test]
+fn working_numbering_is_read_from_the_faces_and_restores_to_the_bit() {
+    let torus = destair::bench::torus(300, 200);
+    assert!(!faces_scattered(torus.triangles()));
+    assert!(working_numbering(&torus).is_none());
+    for seed in [1, 9] {
+        let mesh = destair::bench::shuffled(&torus, seed);
+        let topology = destair::mesh::Topology::build(&mesh);
+        let (offsets, neighbors) = topology.neighbor_csr();
+        // The faces tell what the adjacency tells.
+        assert_eq!(
+            faces_scattered(mesh.triangles()),
+            is_scattered(offsets, neighbors)
+        );
+        let r = working_numbering(&mesh).expect("a shuffled torus is scattered");
+        let worked = r.mesh(&mesh);
+        assert!(!faces_scattered(worked.triangles()));
+        // Same faces in the same order, each vertex where it was.
+        for (t, u) in mesh.triangles().iter().zip(worked.triangles()) {
+            for k in 0..3 {
+                assert_eq!(r.old[u[k] as usize], t[k]);
+                assert_eq!(
+                    worked.positions()[u[k] as usize],
+                    mesh.positions()[t[k] as usize]
+                );
+            }
+        }
+        let back = r.restore(&worked);
+        assert_eq!(back.positions(), mesh.positions());
+        assert_eq!(back.triangles(), mesh.triangles());
+    }
+    // Degenerate inputs do not panic.
+    assert!(working_numbering(&Mesh::default()).is_none());
+}

@@ -41,3 +41,22 @@ fn a_renumbered_run_gives_the_bits_of_a_run_in_file_order() {
         assert_eq!((stats.iterations, stats.last_max_step), (iterations, last));
     }
 }
+
+#[test]
+fn check_result_names_the_vertex_as_the_file_numbers_it() {
+    let original = vec![[0.0f32; 3]; 4];
+    let mut smoothed = original.clone();
+    smoothed[1] = [5.0, 0.0, 0.0];
+    let unit = (1.0, "voxel diagonals");
+    let plain = destair::smooth::check_result(&original, &smoothed, 2.0, unit, None).unwrap_err();
+    assert!(plain.contains("vertex 1 by 5 mm"), "{plain}");
+    // Worked vertex 1 is the file's vertex 3.
+    let r = destair::mesh::order::Renumbering::from_old(vec![2, 3, 0, 1]);
+    let named =
+        destair::smooth::check_result(&original, &smoothed, 2.0, unit, Some(&r)).unwrap_err();
+    assert!(named.contains("vertex 3 by 5 mm"), "{named}");
+    smoothed[1] = [f32::NAN, 0.0, 0.0];
+    let named =
+        destair::smooth::check_result(&original, &smoothed, 2.0, unit, Some(&r)).unwrap_err();
+    assert!(named.contains("vertex 3 has a non-finite"), "{named}");
+}
