@@ -408,9 +408,12 @@ impl TriangleBvh {
         if let Some(t) = start.and_then(|f| self.triangles.get(f as usize).map(|t| (f, t))) {
             best.offer(p, t.0, t.1, keep);
         }
-        // The query's own cell, then its neighbours: enough on the surface.
+        // The query's own cell, then its neighbours: enough on the surface. A point whose
+        // cell and neighbours list nothing (far from the surface) goes to the hierarchy at
+        // once: every triangle is beyond those cells' walls, so they cannot settle it.
         let mut listed = false;
-        for ring in 0..=1 {
+        let rings = if self.cells.near_listed(p) { 0..2 } else { 0..0 };
+        for ring in rings {
             let walls = self.cells.visit_ring(p, ring, |ids, gap2| {
                 listed |= !ids.is_empty();
                 if gap2 <= best.distance * best.distance * (1.0 + 1e-9) {
@@ -422,11 +425,10 @@ impl TriangleBvh {
             if best.distance < walls {
                 return best.found();
             }
-            // Nothing found in its own cell. If a filter rejected the triangles there (as an
-            // opposite wall's does), the neighbours are unlikely to settle it either; if the
-            // cell is empty, they can only when they list triangles (a point just off the
-            // surface, as a vertex of a smoothed copy is), not for a point far away.
-            if best.triangle == u32::MAX && (listed || !self.cells.near_listed(p)) {
+            // Nothing found in its own cell, though a triangle is listed there: a filter
+            // rejected them (as an opposite wall's does), and the neighbours are unlikely to
+            // settle it either.
+            if best.triangle == u32::MAX && listed {
                 break;
             }
         }
