@@ -412,7 +412,11 @@ impl TriangleBvh {
         // cell and neighbours list nothing (far from the surface) goes to the hierarchy at
         // once: every triangle is beyond those cells' walls, so they cannot settle it.
         let mut listed = false;
-        let rings = if self.cells.near_listed(p) { 0..2 } else { 0..0 };
+        let rings = if self.cells.near_listed(p) {
+            0..2
+        } else {
+            0..0
+        };
         for ring in rings {
             let walls = self.cells.visit_ring(p, ring, |ids, gap2| {
                 listed |= !ids.is_empty();
