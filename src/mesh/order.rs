@@ -133,21 +133,30 @@ pub fn is_scattered(offsets: &[u32], neighbors: &[u32]) -> bool {
 /// none has a positive finite length. A cell or bucket size, not a measurement.
 pub fn sampled_mean_edge(positions: &[[f32; 3]], offsets: &[u32], neighbors: &[u32]) -> f64 {
     let n = positions.len();
+    mean_positive_length(
+        (0..n)
+            .step_by((n / 4096).max(1))
+            .filter(|&v| offsets[v] < offsets[v + 1])
+            .map(|v| {
+                (
+                    positions[v],
+                    positions[neighbors[offsets[v] as usize] as usize],
+                )
+            }),
+    )
+}
+
+/// Mean length (mm) of the segments with a positive finite length; 1 when there is none.
+fn mean_positive_length(segments: impl Iterator<Item = ([f32; 3], [f32; 3])>) -> f64 {
     let (mut total, mut count) = (0.0f64, 0usize);
-    for v in (0..n).step_by((n / 4096).max(1)) {
-        if offsets[v] < offsets[v + 1] {
-            let (p, q) = (
-                positions[v],
-                positions[neighbors[offsets[v] as usize] as usize],
-            );
-            let d = (0..3)
-                .map(|k| f64::from(p[k] - q[k]).powi(2))
-                .sum::<f64>()
-                .sqrt();
-            if d.is_finite() && d > 0.0 {
-                total += d;
-                count += 1;
-            }
+    for (p, q) in segments {
+        let d = (0..3)
+            .map(|k| f64::from(p[k] - q[k]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        if d.is_finite() && d > 0.0 {
+            total += d;
+            count += 1;
         }
     }
     if count > 0 {
@@ -192,26 +201,17 @@ pub fn faces_scattered(triangles: &[[u32; 3]]) -> bool {
 /// Mean length (mm) of the first edges of about 4096 faces spread over the face list; 1 when
 /// none has a positive finite length (out-of-range indices are skipped).
 fn sampled_mean_face_edge(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> f64 {
-    let (mut total, mut count) = (0.0f64, 0usize);
-    for t in triangles.iter().step_by((triangles.len() / 4096).max(1)) {
-        let (Some(p), Some(q)) = (positions.get(t[0] as usize), positions.get(t[1] as usize))
-        else {
-            continue;
-        };
-        let d = (0..3)
-            .map(|k| f64::from(p[k] - q[k]).powi(2))
-            .sum::<f64>()
-            .sqrt();
-        if d.is_finite() && d > 0.0 {
-            total += d;
-            count += 1;
-        }
-    }
-    if count > 0 {
-        total / count as f64
-    } else {
-        1.0
-    }
+    mean_positive_length(
+        triangles
+            .iter()
+            .step_by((triangles.len() / 4096).max(1))
+            .filter_map(|t| {
+                Some((
+                    *positions.get(t[0] as usize)?,
+                    *positions.get(t[1] as usize)?,
+                ))
+            }),
+    )
 }
 
 /// The numbering a mesh is best worked in: `None` when its own numbering is local enough (as
