@@ -785,6 +785,40 @@ fn a_scattered_numbering_is_worked_in_scanline_order_and_written_back() {
     for name in ["weight", "displacement"] {
         assert!(values(&cohort, name) == values(&annotated, name), "{name}");
     }
+    // A weights file in the file's numbering: each vertex takes its own weight (here 0 below
+    // the middle height, which holds those vertices in place, and 1 above).
+    let middle = {
+        let mut z: Vec<f32> = plain.positions().iter().map(|p| p[2]).collect();
+        z.sort_by(f32::total_cmp);
+        z[z.len() / 2]
+    };
+    let weights_of = |m: &destair::Mesh| -> Vec<f32> {
+        let w = m.positions().iter().map(|p| f32::from(p[2] >= middle));
+        w.collect()
+    };
+    let with_weights = |mesh: &destair::Mesh, from: &std::path::Path, name: &str| {
+        let w = root.join(format!("{name}_weights.ply"));
+        let weights = weights_of(mesh);
+        destair::io::ply::write_ply(&w, mesh, &meta, &[("weight", &weights)]).unwrap();
+        let out = smooth(
+            from,
+            &format!("{name}_weighted.ply"),
+            &["--weights", w.to_str().unwrap()],
+        );
+        (read(&out).mesh, weights)
+    };
+    let (weighted, weights) = with_weights(&shuffled, &input, "shuffled");
+    let (reference, _) = with_weights(&plain, &plain_path, "plain");
+    let mut largest = 0.0f32;
+    for (i, &o) in old.iter().enumerate() {
+        let (p, q) = (weighted.positions()[i], reference.positions()[o as usize]);
+        largest = (0..3).map(|k| (p[k] - q[k]).abs()).fold(largest, f32::max);
+        if weights[i] == 0.0 {
+            assert!(p == shuffled.positions()[i], "vertex {i} of weight 0 moved");
+        }
+    }
+    assert!(largest < 1e-4, "weighted: {largest} mm");
+    assert!(weighted.positions() != done.positions());
 }
 
 /// `compare` measures a scattered pair (a shuffled mesh and its moved copy, numbered alike) in
