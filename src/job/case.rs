@@ -1,16 +1,14 @@
-//! Processing one case: read and hash its meshes, then for each structure resolve its settings
-//! and references, weight, smooth, measure and encode the outputs. Everything a case produces
+//! Processing one loaded case ([`super::load`]): for each structure resolve its settings and
+//! references, weight, smooth, measure and encode the outputs. Everything a case produces
 //! is returned as bytes and a report; writing them (atomically) is the pipeline's writer's job.
 //! A failing structure is recorded in the report; it never stops the case or the cohort.
 
-use super::discover::CaseInput;
 use super::guard::{guard_case, Kept};
-use super::label_map::{
-    header_geometry, label_structures, load_label_map, LabelSource, LoadedLabelMap, Place,
-};
+use super::label_map::{header_geometry, label_structures, Place};
+use super::load::{LoadedCase, LoadedFile};
 use super::pictures::PictureInput;
 use super::plan::{Plan, StructureSettings};
-use crate::io::{decode_mesh, extension, with_file_bytes, LoadedMesh, OutputFormat, ReadOptions};
+use crate::io::{LoadedMesh, OutputFormat};
 use crate::mesh::order::Renumbering;
 use crate::mesh::{Mesh, Topology};
 use crate::report::case::{CaseReport, CfdReport, InputInfo, StructureReport, SCHEMA_VERSION};
@@ -21,37 +19,6 @@ use crate::spatial::TriangleBvh;
 use crate::weights::{context_weights, AxisChoice};
 use std::collections::BTreeMap;
 use std::time::Instant;
-
-/// One input file, read, hashed and decoded.
-#[derive(Debug)]
-pub struct LoadedFile {
-    pub structure: String,
-    pub file: String,
-    pub bytes: u64,
-    pub blake3: String,
-    pub mesh: Result<LoadedMesh, String>,
-    /// Where the mesh's coordinates live (world, or a label map grid's frame).
-    pub place: Place,
-    /// The label map and label the structure was extracted from.
-    pub source: Option<LabelSource>,
-    /// For a constrained label surface, the binary extraction with the same triangles: the
-    /// "before" of its metrics.
-    pub binary: Option<Mesh>,
-    /// For a file whose numbering is scattered, the scanline order its mesh was renumbered to
-    /// after reading (every pass runs in it); outputs go back to the file's numbering.
-    pub renumbering: Option<Renumbering>,
-}
-
-/// A case with its files in memory.
-#[derive(Debug)]
-pub struct LoadedCase {
-    pub input: CaseInput,
-    pub files: Vec<LoadedFile>,
-    /// The case's label maps, read (their labels become structures when the case is processed).
-    pub label_maps: Vec<LoadedLabelMap>,
-    /// Key for resuming: the plan's output fingerprint for these structures and the input hashes.
-    pub key: String,
-}
 
 /// Everything a processed case leaves behind.
 #[derive(Debug)]
@@ -72,125 +39,10 @@ impl CaseOutput {
     }
 }
 
-/// Reads, hashes and decodes the meshes of a case.
-pub fn load_case(plan: &Plan, input: CaseInput) -> LoadedCase {
-    let options = ReadOptions {
-        mode: plan.read_mode,
-        ..Default::default()
-    };
-    let files: Vec<LoadedFile> = input
-        .meshes
-        .iter()
-        .map(|(structure, path)| {
-            let file = path
-                .file_name()
-                .map_or_else(String::new, |f| f.to_string_lossy().into_owned());
-            let ext = extension(path);
-            match with_file_bytes(path, plan.read_mode, |b| {
-                let hash = blake3::hash(b).to_hex().to_string();
-                (
-                    b.len() as u64,
-                    hash,
-                    decode_mesh(b, ext.as_deref(), &options),
-                )
-            }) {
-                Ok((bytes, blake3, mesh)) => {
-                    let mut mesh = mesh.map_err(|e| format!("{}: {e}", plan.display(path)));
-                    let renumbering = match &mut mesh {
-                        Ok(loaded) => in_working_numbering(plan, structure, loaded),
-                        Err(_) => None,
-                    };
-                    LoadedFile {
-                        structure: structure.clone(),
-                        file,
-                        bytes,
-                        blake3,
-                        mesh,
-                        place: Place::World,
-                        source: None,
-                        binary: None,
-                        renumbering,
-                    }
-                }
-                Err(e) => LoadedFile {
-                    structure: structure.clone(),
-                    file,
-                    bytes: 0,
-                    blake3: String::new(),
-                    mesh: Err(format!("{}: cannot read: {e}", plan.display(path))),
-                    place: Place::World,
-                    source: None,
-                    binary: None,
-                    renumbering: None,
-                },
-            }
-        })
-        .collect();
-    let label_maps: Vec<LoadedLabelMap> = input
-        .label_maps
-        .iter()
-        .map(|p| load_label_map(plan, p))
-        .collect();
-    let key = resume_key(plan, &input, &files, &label_maps);
-    LoadedCase {
-        input,
-        files,
-        label_maps,
-        key,
-    }
-}
-
-/// Renumbers a mesh file whose numbering is scattered into its working numbering, as
-/// `destair smooth` does (so both write the same bytes), unless the structure has the cfd
-/// profile, whose outputs are new surfaces. Returns the renumbering, for writing back.
-fn in_working_numbering(
-    plan: &Plan,
-    structure: &str,
-    loaded: &mut LoadedMesh,
-) -> Option<Renumbering> {
-    if plan.settings_for(structure).cfd.is_some() {
-        return None;
-    }
-    let r = crate::mesh::order::working_numbering(&loaded.mesh)?;
-    loaded.mesh = r.mesh(&loaded.mesh);
-    Some(r)
-}
-
-fn resume_key(
-    plan: &Plan,
-    input: &CaseInput,
-    files: &[LoadedFile],
-    label_maps: &[LoadedLabelMap],
-) -> String {
-    let settings: Vec<(String, StructureSettings)> = input
-        .meshes
-        .iter()
-        .map(|(name, _)| (name.clone(), plan.settings_for(name)))
-        .collect();
-    let mut h = blake3::Hasher::new();
-    h.update(plan.output_fingerprint(&settings).as_bytes());
-    for f in files {
-        h.update(f.structure.as_bytes());
-        h.update(&[0]);
-        h.update(f.blake3.as_bytes());
-        h.update(&[0]);
-    }
-    if !label_maps.is_empty() {
-        // Structure names come from the files, so every settings table may apply to them.
-        h.update(plan.settings_fingerprint().as_bytes());
-        for m in label_maps {
-            h.update(m.file.as_bytes());
-            h.update(&[0]);
-            h.update(m.blake3.as_bytes());
-            h.update(&[0]);
-        }
-    }
-    h.finalize().to_hex().to_string()
-}
-
 /// Encodes a mesh in each output format as `<stem>.<ext>`; returns (file name, bytes) pairs.
 /// VTP carries the per-vertex `arrays` always, PLY only with `[output] annotate`. `formats`
-/// is the plan's list, less any a caller writes itself.
+/// is the plan's list, less any a caller writes itself. A mesh worked in the file's
+/// `renumbering` goes back to the file's numbering first, its arrays with it.
 fn encode(
     plan: &Plan,
     formats: &[OutputFormat],
@@ -198,13 +50,24 @@ fn encode(
     mesh: &Mesh,
     loaded: &LoadedMesh,
     arrays: &[(&str, &[f32])],
+    renumbering: Option<&Renumbering>,
 ) -> Result<Vec<(String, Vec<u8>)>, String> {
+    let (restored, scattered): (Mesh, Vec<(&str, Vec<f32>)>);
+    let (mesh, arrays) = match renumbering {
+        Some(r) => {
+            restored = r.restore(mesh);
+            scattered = arrays.iter().map(|&(n, v)| (n, r.scatter(v))).collect();
+            let named = scattered.iter().map(|(n, v)| (*n, v.as_slice())).collect();
+            (&restored, named)
+        }
+        None => (mesh, arrays.to_vec()),
+    };
     formats
         .iter()
         .map(|&f| {
             let arrays = match f {
                 OutputFormat::Ply if !plan.annotate => &[][..],
-                _ => arrays,
+                _ => &arrays[..],
             };
             crate::io::encode_annotated(f, mesh, &loaded.meta, arrays, "displacement")
                 .map(|b| (format!("{stem}.{}", f.extension()), b))
@@ -561,10 +424,15 @@ fn process_structure(
                 .push("skip = true: copied unchanged, without the cfd profile".into());
         }
         let world = in_world(&place, mesh).into_owned();
-        let out = match &file.renumbering {
-            Some(r) => encode(plan, &plan.formats, stem, &r.restore(&world), loaded, &[]),
-            None => encode(plan, &plan.formats, stem, &world, loaded, &[]),
-        };
+        let out = encode(
+            plan,
+            &plan.formats,
+            stem,
+            &world,
+            loaded,
+            &[],
+            file.renumbering.as_ref(),
+        );
         *surfaces = Some(Surfaces {
             before: world.clone(),
             after: world,
@@ -763,7 +631,8 @@ fn process_structure(
             .copied()
             .filter(|&f| f != OutputFormat::Vtp)
             .collect();
-        let mut out = encode(plan, &formats, stem, &done.mesh, loaded, &[])?;
+        // New surfaces, written as made (a cfd structure is worked in the file's numbering).
+        let mut out = encode(plan, &formats, stem, &done.mesh, loaded, &[], None)?;
         out.extend(
             crate::cfd::encode_patch_files(stem, &done.mesh, &loaded.meta, &done.patches)
                 .map_err(|e| e.to_string())?,
@@ -806,27 +675,16 @@ fn process_structure(
     report.displacement_histogram = Some(crate::report::pictures::histogram(&displacement));
     arrays.push(("displacement", displacement));
     let smoothed_world = in_world(&place, &smoothed).into_owned();
-    // Written as the file numbers its vertices.
-    let out = match &file.renumbering {
-        Some(r) => {
-            let back: Vec<(&str, Vec<f32>)> =
-                arrays.iter().map(|(n, v)| (*n, r.scatter(v))).collect();
-            let named: Vec<(&str, &[f32])> = back.iter().map(|(n, v)| (*n, v.as_slice())).collect();
-            encode(
-                plan,
-                &plan.formats,
-                stem,
-                &r.restore(&smoothed_world),
-                loaded,
-                &named,
-            )?
-        }
-        None => {
-            let named: Vec<(&str, &[f32])> =
-                arrays.iter().map(|(n, v)| (*n, v.as_slice())).collect();
-            encode(plan, &plan.formats, stem, &smoothed_world, loaded, &named)?
-        }
-    };
+    let named: Vec<(&str, &[f32])> = arrays.iter().map(|(n, v)| (*n, v.as_slice())).collect();
+    let out = encode(
+        plan,
+        &plan.formats,
+        stem,
+        &smoothed_world,
+        loaded,
+        &named,
+        file.renumbering.as_ref(),
+    )?;
     report.status = "ok".into();
     // Pictures are drawn once the guard is done; a label surface's pictures start from its
     // binary extraction, which the displacements are measured from.

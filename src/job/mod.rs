@@ -7,6 +7,7 @@ pub mod discover;
 mod guard;
 pub mod index_page;
 pub mod label_map;
+pub mod load;
 pub mod lock;
 pub mod outputs;
 pub mod paths;

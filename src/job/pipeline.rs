@@ -9,8 +9,9 @@
 //! folders keep whatever a previous run wrote, and a rerun redoes them. So a stop takes effect
 //! within a fraction of a second whatever the size of the cases.
 
-use super::case::{load_case, process_case, CaseOutput, LoadedCase};
+use super::case::{process_case, CaseOutput};
 use super::discover::CaseInput;
+use super::load::{load_case, LoadedCase};
 use super::lock::{LockMode, LockScope, OutputLock, Wait};
 use super::outputs::{case_dir, is_done, read_manifest, write_case_output};
 use super::plan::Plan;
