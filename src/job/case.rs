@@ -52,11 +52,15 @@ fn encode(
     arrays: &[(&str, &[f32])],
     renumbering: Option<&Renumbering>,
 ) -> Result<Vec<(String, Vec<u8>)>, String> {
+    // Whether format `f` writes the arrays: they are scattered back only if one does.
+    let written = |f: OutputFormat| f != OutputFormat::Ply || plan.annotate;
+    let keep_arrays = formats.iter().any(|&f| written(f));
     let (restored, scattered): (Mesh, Vec<(&str, Vec<f32>)>);
     let (mesh, arrays) = match renumbering {
         Some(r) => {
             restored = r.restore(mesh);
-            scattered = arrays.iter().map(|&(n, v)| (n, r.scatter(v))).collect();
+            let kept = arrays.iter().filter(|_| keep_arrays);
+            scattered = kept.map(|&(n, v)| (n, r.scatter(v))).collect();
             let named = scattered.iter().map(|(n, v)| (*n, v.as_slice())).collect();
             (&restored, named)
         }
@@ -65,10 +69,7 @@ fn encode(
     formats
         .iter()
         .map(|&f| {
-            let arrays = match f {
-                OutputFormat::Ply if !plan.annotate => &[][..],
-                _ => &arrays[..],
-            };
+            let arrays = if written(f) { &arrays[..] } else { &[][..] };
             crate::io::encode_annotated(f, mesh, &loaded.meta, arrays, "displacement")
                 .map(|b| (format!("{stem}.{}", f.extension()), b))
                 .map_err(|e| e.to_string())
