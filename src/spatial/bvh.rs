@@ -201,6 +201,12 @@ impl Best {
         if box_distance2(p, lo, hi) > self.reach {
             return;
         }
+        self.offer_exact(p, f, t);
+    }
+
+    /// [`Best::offer`] past `keep` and the box: the exact distance decides.
+    #[inline]
+    fn offer_exact(&mut self, p: [f32; 3], f: u32, t: &[[f32; 3]; 3]) {
         // A square further than the best's by more than two units in the last place has a
         // root that rounds further than the best: no root needed.
         let d2 = point_triangle_distance2(p, *t);
@@ -421,8 +427,23 @@ impl TriangleBvh {
             let walls = self.cells.visit_ring(p, ring, |ids, gap2| {
                 listed |= !ids.is_empty();
                 if gap2 <= best.distance * best.distance * (1.0 + 1e-9) {
-                    for &f in ids {
-                        best.offer(p, f, &self.triangles[f as usize], &keep);
+                    // Eight boxes at a time into a mask, as a leaf's: most are out of reach.
+                    for ids in ids.chunks(8) {
+                        let mut gaps = [0.0f32; 8];
+                        let mut mask = 0u32;
+                        for (i, &f) in ids.iter().enumerate() {
+                            let (lo, hi) = triangle_box(&self.triangles[f as usize]);
+                            gaps[i] = box_distance2(p, lo, hi);
+                            mask |= ((gaps[i] <= best.reach) as u32) << i;
+                        }
+                        while mask != 0 {
+                            let i = mask.trailing_zeros() as usize;
+                            mask &= mask - 1;
+                            let f = ids[i];
+                            if gaps[i] <= best.reach && keep(f) {
+                                best.offer_exact(p, f, &self.triangles[f as usize]);
+                            }
+                        }
                     }
                 }
             });
@@ -468,9 +489,24 @@ impl Tree {
             }
             if child & LEAF_BIT != 0 {
                 let start = (child & !LEAF_BIT) as usize;
-                let end = start + count as usize;
-                for (&f, t) in self.order[start..end].iter().zip(&self.corners[start..end]) {
-                    best.offer(p, f, t, keep);
+                let end = (start + count as usize).min(start + LEAF);
+                let corners = &self.corners[start..end];
+                // Boxes first, all of the leaf's, into a mask (no branch per triangle), then
+                // the exact distance for each triangle whose box is still in reach.
+                let mut gaps = [0.0f32; LEAF];
+                let mut mask = 0u32;
+                for (i, t) in corners.iter().enumerate() {
+                    let (lo, hi) = triangle_box(t);
+                    gaps[i] = box_distance2(p, lo, hi);
+                    mask |= ((gaps[i] <= best.reach) as u32) << i;
+                }
+                while mask != 0 {
+                    let i = mask.trailing_zeros() as usize;
+                    mask &= mask - 1;
+                    let f = self.order[start + i];
+                    if gaps[i] <= best.reach && keep(f) {
+                        best.offer_exact(p, f, &corners[i]);
+                    }
                 }
                 continue;
             }
@@ -482,37 +518,43 @@ impl Tree {
             } else {
                 disk_distances2(p, &self.disks[child as usize])
             };
-            // The children in reach, nearest pushed last (searched first).
-            let mut hits = [(0u32, 0u32, 0.0f32); 4];
+            // The children in reach, nearest pushed last (searched first), without a branch
+            // per child: which of four children are in reach and in what order is data the
+            // branch predictor cannot learn. Each child gets a key, its distance's bits (a
+            // non-negative f32 orders as its bits) with the low two traded for its slot, one
+            // step up so that a key is never 0, which marks a child out of reach; four keys
+            // sorted by decreasing value by a sorting network of min and max, and all four
+            // entries written, only the hits counted.
+            let mut keys = [0u32; 4];
             let mut n_hits = 0;
+            // Only a leaf has a disk.
+            let gaps: [f32; 4] = std::array::from_fn(|k| {
+                if node.count[k] > 0 {
+                    max(gaps[k], disks[k])
+                } else {
+                    gaps[k]
+                }
+            });
             for (k, &gap) in gaps.iter().enumerate() {
                 // An unused slot's box is empty (infinitely far), which an infinite reach
                 // would still take.
-                if gap <= best.reach && node.child[k] != NO_CHILD {
-                    // Only a leaf has a disk.
-                    let gap = if node.count[k] > 0 {
-                        max(gap, disks[k])
-                    } else {
-                        gap
-                    };
-                    if gap > best.reach {
-                        continue;
-                    }
-                    let mut at = n_hits;
-                    // Insertion by decreasing distance; equal distances keep slot order.
-                    while at > 0 && hits[at - 1].2 < gap {
-                        hits[at] = hits[at - 1];
-                        at -= 1;
-                    }
-                    hits[at] = (node.child[k], node.count[k], gap);
-                    n_hits += 1;
-                }
+                let hit = gap <= best.reach && node.child[k] != NO_CHILD;
+                let key = ((gap.to_bits() & 0x7fff_fffc).wrapping_add(4)) | k as u32;
+                keys[k] = if hit { key } else { 0 };
+                n_hits += hit as usize;
             }
-            if depth + hits.len() > stack.len() {
+            for (i, j) in [(0, 1), (2, 3), (0, 2), (1, 3), (1, 2)] {
+                let (a, b) = (keys[i], keys[j]);
+                keys[i] = a.max(b);
+                keys[j] = a.min(b);
+            }
+            if depth + keys.len() > stack.len() {
                 return None;
             }
-            // All four copied (a fixed-size move), only the hits kept.
-            stack[depth..depth + hits.len()].copy_from_slice(&hits);
+            for (i, &key) in keys.iter().enumerate() {
+                let k = (key & 3) as usize;
+                stack[depth + i] = (node.child[k], node.count[k], gaps[k]);
+            }
             depth += n_hits;
         }
         Some(best)

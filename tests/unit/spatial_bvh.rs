@@ -195,3 +195,40 @@ fn the_tree_does_not_depend_on_the_thread_count() {
     assert_eq!(one.nodes.len(), three.nodes.len());
     assert_eq!(one.corners, three.corners);
 }
+
+/// Query points with NaN coordinates (a corrupt vertex) find nothing, and infinite ones what
+/// testing every triangle finds, without a panic (the children's sort keys are made from the
+/// bits of their distances, NaN payloads included).
+#[test]
+fn a_query_point_that_is_not_finite_finds_nothing() {
+    let mut rng = fastrand::Rng::with_seed(31);
+    let triangles = scattered_triangles(&mut rng, 3000);
+    let tree = TriangleBvh::from_triangles(&triangles);
+    let nans = [
+        f32::NAN,
+        -f32::NAN,
+        f32::from_bits(0xffff_ffff),
+        f32::from_bits(0x7fff_ffff),
+    ];
+    for (i, &nan) in nans.iter().enumerate() {
+        for p in [
+            [nan, 1.0, 2.0],
+            [3.0, nan, nan],
+            [f32::INFINITY, 5.0, 5.0],
+            [5.0, f32::NEG_INFINITY, f32::INFINITY],
+        ] {
+            let slow = tree.fallback(p, f64::INFINITY, |_| true);
+            let fast = tree.nearest(p).map(|n| (n.distance, n.triangle));
+            assert_eq!(fast, slow, "{i}: {p:?}");
+            if p.iter().any(|x| x.is_nan()) {
+                assert_eq!(fast, None, "{i}: {p:?}");
+            }
+        }
+    }
+    let points = [[f32::NAN, 0.0, 0.0], [20.0, 20.0, 20.0], [f32::NAN; 3]];
+    let d = tree.distances(&points);
+    assert!(
+        d[0].is_infinite() && d[1].is_finite() && d[2].is_infinite(),
+        "{d:?}"
+    );
+}
