@@ -6,11 +6,24 @@
 //! hierarchy costs a dozen nodes whose boxes all hold the point, and building the hierarchy
 //! costs more than the grid. Queries it does not settle go to the hierarchy
 //! ([`super::bvh`]) with the best distance found as their bound.
+//!
+//! A surface fills a few percent of the cells of its box, so only listed cells have lists:
+//! the grid is kept in blocks of 4 x 4 x 4 cells, one bit per cell in a 64-bit word saying
+//! which cells list a triangle, and a listed cell's list is found from its block's first
+//! listed cell and the bits before its own. A 1 M-triangle surface then costs about 1 MB
+//! besides its lists, against 60 MB for a list start per cell.
 
 use rayon::prelude::*;
 
+/// Cells per block along each axis.
+const B: usize = 4;
+
+/// Most cells per triangle: a grid finer than twice the mean edge only for surfaces that
+/// fill their box sparsely (a few triangles far apart), where it costs under a byte a cell.
+const CELLS_PER_TRIANGLE: usize = 16;
+
 /// Cells over the triangles' box, about twice the mean edge length wide, each listing the
-/// triangles whose box overlaps it (CSR).
+/// triangles whose box overlaps it (CSR over the listed cells only).
 #[derive(Debug, Clone, Default)]
 pub struct TriangleCells {
     /// Lowest corner of the grid (mm).
@@ -21,12 +34,22 @@ pub struct TriangleCells {
     per_cell: f64,
     /// Cells along x, y, z.
     pub dims: [usize; 3],
-    /// Per cell, where its triangles start in the list (CSR, one more than the cells).
-    pub offsets: Vec<u32>,
+    /// Blocks of 4 x 4 x 4 cells along x, y, z (the last may reach past the grid).
+    blocks: [usize; 3],
+    /// Per block, which of its cells list a triangle: bit x + 4 y + 16 z for the cell at
+    /// (x, y, z) within the block. Empty when there are no triangles.
+    listed: Vec<u64>,
+    /// Per block, how many cells the blocks before it list: listed cells are numbered block
+    /// by block and bit by bit.
+    first: Vec<u32>,
+    /// Per block, as `listed`: which cells have a listed cell among themselves and their 26
+    /// neighbours, so that a query whose own cell is empty knows at once whether its
+    /// neighbours are worth a look.
+    near: Vec<u64>,
+    /// Per listed cell, where its triangles start in `ids` (CSR, one more than the listed
+    /// cells).
+    offsets: Vec<u32>,
     ids: Vec<u32>,
-    /// Per cell: whether it or one of its 26 neighbours lists a triangle, so that a query
-    /// whose own cell is empty knows at once whether its neighbours are worth a look.
-    near_listed: Vec<bool>,
     /// Far above the rounding of a wall's distance at this grid's coordinates (mm).
     slack: f64,
 }
@@ -82,7 +105,12 @@ impl TriangleCells {
                     (sum + length(0) + length(1) + length(2), count + 1)
                 });
         let extent: [f64; 3] = std::array::from_fn(|a| (hi[a] - lo[a]).max(0.0));
-        let (cell, dims) = super::grid_cells(extent, 2.0 * edge_sum / (3 * sampled) as f64, n);
+        let (cell, dims) = super::grid_cells(
+            extent,
+            2.0 * edge_sum / (3 * sampled) as f64,
+            n,
+            CELLS_PER_TRIANGLE,
+        );
         let per_cell = 1.0 / cell;
         // As `TriangleCells::cell_of`.
         let cell_of = |x: f64, a: usize| (((x - lo[a]) * per_cell) as usize).min(dims[a] - 1);
@@ -94,35 +122,60 @@ impl TriangleCells {
                 std::array::from_fn(|a| cell_of(mx[a] as f64, a)),
             )
         };
-        let n_cells = dims[0] * dims[1] * dims[2];
-        let (offsets, ids) = cell_lists(triangles, dims, range);
+        let blocks = dims.map(|d| d.div_ceil(B));
+        let lists = cell_lists(triangles, dims, blocks, range);
         let scale = (0..3)
             .map(|a| lo[a].abs().max(hi[a].abs()))
             .fold(cell, f64::max);
-        let near_listed = dilate(
-            (0..n_cells)
-                .into_par_iter()
-                .map(|c| offsets[c] < offsets[c + 1])
-                .collect(),
-            dims,
-        );
         TriangleCells {
             origin: lo,
             cell,
             per_cell,
             dims,
-            offsets,
-            ids,
-            near_listed,
+            blocks,
+            near: dilate(&lists.listed, blocks),
+            listed: lists.listed,
+            first: lists.first,
+            offsets: lists.offsets,
+            ids: lists.ids,
             slack: 1e-9 * scale,
         }
+    }
+
+    /// The block of cell `at` and the cell's bit in it.
+    #[inline]
+    fn block_bit(&self, at: [usize; 3]) -> (usize, u32) {
+        let [bx, by, _] = self.blocks;
+        let b = ((at[2] / B) * by + at[1] / B) * bx + at[0] / B;
+        let bit = at[0] % B + B * (at[1] % B) + B * B * (at[2] % B);
+        (b, bit as u32)
+    }
+
+    /// The triangles cell `at` (x, y, z) lists, ascending; none outside the grid.
+    pub fn list(&self, at: [usize; 3]) -> &[u32] {
+        if self.listed.is_empty() || (0..3).any(|a| at[a] >= self.dims[a]) {
+            return &[];
+        }
+        self.list_in(at)
+    }
+
+    /// [`TriangleCells::list`] of a cell inside the grid.
+    #[inline]
+    fn list_in(&self, at: [usize; 3]) -> &[u32] {
+        let (b, bit) = self.block_bit(at);
+        let mask = self.listed[b];
+        if mask >> bit & 1 == 0 {
+            return &[];
+        }
+        let slot = self.first[b] as usize + (mask & ((1u64 << bit) - 1)).count_ones() as usize;
+        &self.ids[self.offsets[slot] as usize..self.offsets[slot + 1] as usize]
     }
 
     /// Whether the cell of `p` or one of its 26 neighbours lists a triangle; false for a point
     /// more than a cell outside the grid, whose nearest cell's neighbours are no nearer to it
     /// than the rest.
     pub fn near_listed(&self, p: [f32; 3]) -> bool {
-        if self.offsets.is_empty() {
+        if self.listed.is_empty() {
             return false;
         }
         let q = p.map(f64::from);
@@ -131,7 +184,8 @@ impl TriangleCells {
             x >= -1.0 && x <= (self.dims[a] + 1) as f64
         });
         let at: [usize; 3] = std::array::from_fn(|a| self.cell_of(q[a], a));
-        inside && self.near_listed[(at[2] * self.dims[1] + at[1]) * self.dims[0] + at[0]]
+        let (b, bit) = self.block_bit(at);
+        inside && self.near[b] >> bit & 1 != 0
     }
 
     /// The cell index of coordinate `x` along axis `a`, clamped to the grid. By the
@@ -142,14 +196,14 @@ impl TriangleCells {
         (((x - self.origin[a]) * self.per_cell) as usize).min(self.dims[a] - 1)
     }
 
-    /// Visits the cells of ring `ring` around the cell of `p` (the nearest cell for a point
+    /// Visits the listed cells of ring `ring` around the cell of `p` (the nearest cell for a point
     /// outside; ring 0 is that cell, ring 1 its 26 neighbours) with a lower bound of the
     /// squared distance from `p` to each (mm^2), and returns how far `p` is from the walls of the block of rings 0
     /// to `ring` where the grid goes on, less a slack for rounding (mm; infinite when the
     /// block is the whole grid): every triangle listed in no cell of the block is at least
     /// that far, so a triangle of the block strictly closer is the nearest of all.
     pub fn visit_ring(&self, p: [f32; 3], ring: usize, mut visit: impl FnMut(&[u32], f64)) -> f64 {
-        if self.offsets.is_empty() {
+        if self.listed.is_empty() {
             return f64::NEG_INFINITY;
         }
         let q = p.map(f64::from);
@@ -164,6 +218,10 @@ impl TriangleCells {
                     if !(on_ring(i, 0) || on_ring(j, 1) || on_ring(k, 2)) {
                         continue;
                     }
+                    let ids = self.list_in([i, j, k]);
+                    if ids.is_empty() {
+                        continue;
+                    }
                     let gap2: f64 = [i, j, k]
                         .iter()
                         .enumerate()
@@ -176,11 +234,7 @@ impl TriangleCells {
                             gap * gap
                         })
                         .sum();
-                    let c = (k * dims[1] + j) * dims[0] + i;
-                    visit(
-                        &self.ids[self.offsets[c] as usize..self.offsets[c + 1] as usize],
-                        gap2,
-                    );
+                    visit(ids, gap2);
                 }
             }
         }
@@ -200,96 +254,102 @@ impl TriangleCells {
 /// Lowest and highest cell along each axis of a box of cells.
 type CellBox = ([usize; 3], [usize; 3]);
 
-/// The cells' triangle lists (CSR offsets and ids) of a grid of `dims` cells, where `range`
-/// gives the cells a triangle overlaps. Stretches of triangles are counted and filled side by
+/// The listed cells of a grid and their triangle lists.
+struct Lists {
+    /// As [`TriangleCells`]'s fields of the same names.
+    listed: Vec<u64>,
+    first: Vec<u32>,
+    offsets: Vec<u32>,
+    ids: Vec<u32>,
+}
+
+/// The cells' triangle lists of a grid of `dims` cells in `blocks` blocks, where `range`
+/// gives the cells a triangle overlaps. Stretches of triangles mark, count and fill side by
 /// side, each from its own cursors, so every list holds its triangles in ascending order
 /// whatever the number of threads: the lists a serial pass would make.
 fn cell_lists(
     triangles: &[[[f32; 3]; 3]],
     dims: [usize; 3],
+    blocks: [usize; 3],
     range: impl Fn(&[[f32; 3]; 3]) -> CellBox + Sync,
-) -> (Vec<u32>, Vec<u32>) {
+) -> Lists {
     use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
-    let n_cells = dims[0] * dims[1] * dims[2];
-    // Every cell of a box, by linear index.
-    fn each_cell((lo, hi): CellBox, dims: [usize; 3], mut visit: impl FnMut(usize)) {
+    let n_blocks = blocks[0] * blocks[1] * blocks[2];
+    let block_bit = |[i, j, k]: [usize; 3]| {
+        let b = ((k / B) * blocks[1] + j / B) * blocks[0] + i / B;
+        (b, (i % B + B * (j % B) + B * B * (k % B)) as u32)
+    };
+    // Every cell of a box.
+    fn each_cell((lo, hi): CellBox, dims: [usize; 3], mut visit: impl FnMut([usize; 3])) {
+        debug_assert!((0..3).all(|a| hi[a] < dims[a]));
         for k in lo[2]..=hi[2] {
             for j in lo[1]..=hi[1] {
                 for i in lo[0]..=hi[0] {
-                    visit((k * dims[1] + j) * dims[0] + i);
+                    visit([i, j, k]);
                 }
             }
         }
     }
-    // One stretch per thread, but the stretches' counts (4 bytes per cell each) together no
-    // larger than the corners the index keeps (36 bytes per triangle): a grid of about 3.5
-    // cells per triangle gets two stretches whatever the number of cores.
-    let by_memory = (9 * triangles.len() / n_cells.max(1)).max(1);
     let stretch = triangles
         .len()
-        .div_ceil(rayon::current_num_threads().clamp(1, 8).min(by_memory))
+        .div_ceil(rayon::current_num_threads().clamp(1, 8))
         .max(1 << 14);
     let stretches: Vec<&[[[f32; 3]; 3]]> = triangles.chunks(stretch).collect();
-    // Per stretch, its triangles in each cell.
+    // Which cells are listed: each stretch's bits, then all of them together.
+    let marks: Vec<Vec<u64>> = stretches
+        .par_iter()
+        .map(|part| {
+            let mut mask = vec![0u64; n_blocks];
+            for t in *part {
+                each_cell(range(t), dims, |c| {
+                    let (b, bit) = block_bit(c);
+                    mask[b] |= 1 << bit;
+                });
+            }
+            mask
+        })
+        .collect();
+    let mut listed = vec![0u64; n_blocks];
+    listed.par_iter_mut().enumerate().for_each(|(b, m)| {
+        *m = marks.iter().fold(0, |m, mark| m | mark[b]);
+    });
+    drop(marks);
+    let mut first = Vec::with_capacity(n_blocks);
+    let mut n_listed = 0u32;
+    for m in &listed {
+        first.push(n_listed);
+        n_listed += m.count_ones();
+    }
+    let slot = |c: [usize; 3]| {
+        let (b, bit) = block_bit(c);
+        first[b] as usize + (listed[b] & ((1u64 << bit) - 1)).count_ones() as usize
+    };
+    // Per stretch, its triangles in each listed cell.
     let mut counts: Vec<Vec<u32>> = stretches
         .par_iter()
         .map(|part| {
-            let mut count = crate::hugepages::zeroed_vec::<u32>(n_cells);
+            let mut count = vec![0u32; n_listed as usize];
             for t in *part {
-                each_cell(range(t), dims, |c| count[c] += 1);
+                each_cell(range(t), dims, |c| count[slot(c)] += 1);
             }
             count
         })
         .collect();
-    // Offsets, and each stretch's count turned into its first slot in the cell: blocks of
-    // cells in parallel, each from the total of the blocks before it.
-    const BLOCK: usize = 1 << 16;
-    let block_totals: Vec<u32> = (0..n_cells.div_ceil(BLOCK))
-        .into_par_iter()
-        .map(|b| {
-            let cells = b * BLOCK..((b + 1) * BLOCK).min(n_cells);
-            counts
-                .iter()
-                .map(|c| c[cells.clone()].iter().sum::<u32>())
-                .sum()
-        })
-        .collect();
-    let mut block_starts = Vec::with_capacity(block_totals.len());
-    let mut total = 0u32;
-    for t in &block_totals {
-        block_starts.push(total);
-        total += t;
-    }
-    let mut offsets = crate::hugepages::zeroed_vec::<u32>(n_cells + 1);
-    offsets[n_cells] = total;
-    // Per block: its first slot, its offsets and each stretch's counts there.
-    type Block<'a> = (u32, &'a mut [u32], Vec<&'a mut [u32]>);
-    let mut blocks: Vec<Block> = offsets[..n_cells]
-        .chunks_mut(BLOCK)
-        .zip(&block_starts)
-        .map(|(o, &start)| (start, o, Vec::with_capacity(counts.len())))
-        .collect();
-    for count in counts.iter_mut() {
-        for (block, part) in blocks.iter_mut().zip(count.chunks_mut(BLOCK)) {
-            block.2.push(part);
+    // Offsets, and each stretch's count turned into its first place in the cell's list.
+    let mut offsets = Vec::with_capacity(n_listed as usize + 1);
+    let mut at = 0u32;
+    for s in 0..n_listed as usize {
+        offsets.push(at);
+        for count in counts.iter_mut() {
+            let n = count[s];
+            count[s] = at;
+            at += n;
         }
     }
-    blocks
-        .into_par_iter()
-        .for_each(|(start, offsets, mut parts)| {
-            let mut at = start;
-            for (i, o) in offsets.iter_mut().enumerate() {
-                *o = at;
-                for part in parts.iter_mut() {
-                    let n = part[i];
-                    part[i] = at;
-                    at += n;
-                }
-            }
-        });
-    // Huge pages where offered: these buffers are written at scattered places.
-    let mut ids: Vec<AtomicU32> = crate::hugepages::with_capacity(total as usize);
-    (0..total)
+    offsets.push(at);
+    // Huge pages where offered: this buffer is written at scattered places.
+    let mut ids: Vec<AtomicU32> = crate::hugepages::with_capacity(at as usize);
+    (0..at)
         .into_par_iter()
         .map(|_| AtomicU32::new(0))
         .collect_into_vec(&mut ids);
@@ -301,74 +361,56 @@ fn cell_lists(
             for (i, t) in part.iter().enumerate() {
                 let f = (k * stretch + i) as u32;
                 each_cell(range(t), dims, |c| {
-                    ids[cursor[c] as usize].store(f, Relaxed);
-                    cursor[c] += 1;
+                    let s = slot(c);
+                    ids[cursor[s] as usize].store(f, Relaxed);
+                    cursor[s] += 1;
                 });
             }
         });
     // In place: a Vec's own iterator mapped to a type of the same size and alignment collects
     // into the same buffer (no second buffer of fresh pages).
-    let plain: Vec<u32> = ids.into_iter().map(AtomicU32::into_inner).collect();
-    (offsets, plain)
-}
-
-/// `listed` (one flag per cell of a grid of `dims`) widened by one cell along every axis in
-/// turn: a cell's result is set when any cell of its 3 x 3 x 3 block is. Each pass ORs whole
-/// rows or planes shifted by one cell (no branch per cell), planes in parallel: along x and y
-/// within each plane (through one plane of scratch per worker), then along z into `listed`'s
-/// own buffer.
-fn dilate(mut listed: Vec<bool>, dims: [usize; 3]) -> Vec<bool> {
-    let [nx, ny, _] = dims;
-    let plane = nx * ny;
-    if plane == 0 {
-        return listed;
-    }
-    let mut along_xy = vec![false; listed.len()];
-    along_xy
-        .par_chunks_mut(plane)
-        .zip(listed.par_chunks(plane))
-        .for_each_init(Vec::new, |along_x, (out, src)| {
-            // Along x, within each row.
-            along_x.clear();
-            along_x.extend_from_slice(src);
-            for (o, s) in along_x.chunks_mut(nx).zip(src.chunks(nx)) {
-                or_shifted(o, s);
-            }
-            // Along y: rows ORed with the rows before and after.
-            out.copy_from_slice(along_x);
-            if ny > 1 {
-                or_into(&mut out[nx..], &along_x[..plane - nx]);
-                or_into(&mut out[..plane - nx], &along_x[nx..]);
-            }
-        });
-    // Along z: planes ORed with the planes before and after.
-    let from = &along_xy;
-    listed
-        .par_chunks_mut(plane)
-        .enumerate()
-        .for_each(|(k, out)| {
-            out.copy_from_slice(&from[k * plane..(k + 1) * plane]);
-            if k > 0 {
-                or_into(out, &from[(k - 1) * plane..k * plane]);
-            }
-            if let Some(next) = from.get((k + 1) * plane..(k + 2) * plane) {
-                or_into(out, next);
-            }
-        });
-    listed
-}
-
-/// `out[i] |= src[i]`.
-fn or_into(out: &mut [bool], src: &[bool]) {
-    for (o, &s) in out.iter_mut().zip(src) {
-        *o |= s;
+    let ids: Vec<u32> = ids.into_iter().map(AtomicU32::into_inner).collect();
+    Lists {
+        listed,
+        first,
+        offsets,
+        ids,
     }
 }
 
-/// `out[i] |= src[i - 1] | src[i + 1]` where those exist (`out` starts as a copy of `src`).
-fn or_shifted(out: &mut [bool], src: &[bool]) {
-    if src.len() > 1 {
-        or_into(&mut out[1..], &src[..src.len() - 1]);
-        or_into(&mut out[..src.len() - 1], &src[1..]);
-    }
+/// The cells with a listed cell among themselves and their 26 neighbours, as block bits
+/// (`listed` widened by one cell along each axis in turn). Each pass shifts a block's 64
+/// bits by one cell along its axis, masks the bits that would wrap into the next row, and
+/// brings in the facing layer of the two neighbouring blocks along that axis.
+fn dilate(listed: &[u64], blocks: [usize; 3]) -> Vec<u64> {
+    /// Cells at x = 0, y = 0 and z = 0 of a block.
+    const X0: u64 = 0x1111_1111_1111_1111;
+    const Y0: u64 = 0x000f_000f_000f_000f;
+    const Z0: u64 = 0xffff;
+    // Along one axis, with the cells one step along it (`step` bits) and the layers at
+    // either end of the block (`low`, `high`).
+    let pass = |src: &[u64], axis: usize, step: u32, low: u64, high: u64| -> Vec<u64> {
+        let stride = [1, blocks[0], blocks[0] * blocks[1]][axis];
+        let across = (B as u32 - 1) * step;
+        (0..src.len())
+            .into_par_iter()
+            .map(|b| {
+                let along = (b / stride) % blocks[axis];
+                let before = if along > 0 { src[b - stride] } else { 0 };
+                let after = if along + 1 < blocks[axis] {
+                    src[b + stride]
+                } else {
+                    0
+                };
+                let m = src[b];
+                m | ((m << step) & !low)
+                    | ((m >> step) & !high)
+                    | ((before & high) >> across)
+                    | ((after & low) << across)
+            })
+            .collect()
+    };
+    let along_x = pass(listed, 0, 1, X0, X0 << 3);
+    let along_y = pass(&along_x, 1, B as u32, Y0, Y0 << 12);
+    pass(&along_y, 2, (B * B) as u32, Z0, Z0 << 48)
 }

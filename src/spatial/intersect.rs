@@ -232,7 +232,7 @@ impl BoxGrid {
         }
         let extent: [f64; 3] = std::array::from_fn(|k| hi[k] - lo[k]);
         let wanted = 2.0 * size / (3 * (boxes.len() + extra.len()).max(1)) as f64;
-        let (cell, dims) = super::grid_cells(extent, wanted, boxes.len().max(1));
+        let (cell, dims) = super::grid_cells(extent, wanted, boxes.len().max(1), 4);
         let mut grid = BoxGrid {
             origin: lo,
             cell,

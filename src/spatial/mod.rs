@@ -165,11 +165,16 @@ pub fn point_triangle_distance2(p: [f32; 3], t: [[f32; 3]; 3]) -> f64 {
 }
 
 /// Cell size and cell counts of a uniform grid over a box of `extent` (mm): cells of about
-/// `wanted` mm, but no more than a few per item (4 n + 64 in all).
-pub(crate) fn grid_cells(extent: [f64; 3], wanted: f64, n_items: usize) -> (f64, [usize; 3]) {
+/// `wanted` mm, but no more than `per_item` per item (`per_item` n + 64 in all).
+pub(crate) fn grid_cells(
+    extent: [f64; 3],
+    wanted: f64,
+    n_items: usize,
+    per_item: usize,
+) -> (f64, [usize; 3]) {
     let max_extent = extent.iter().cloned().fold(0.0, f64::max).max(1e-9);
     let mut cell = wanted.max(max_extent * 1e-6).max(1e-9);
-    let budget = (4 * n_items + 64) as f64;
+    let budget = (per_item as f64) * n_items as f64 + 64.0;
     let count = |c: f64| {
         extent
             .iter()

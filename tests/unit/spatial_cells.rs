@@ -14,10 +14,7 @@ fn near_listed_is_any_listed_cell_of_the_block() {
             .collect();
         let cells = TriangleCells::build(&triangles);
         let [nx, ny, nz] = cells.dims;
-        let listed = |i: usize, j: usize, k: usize| {
-            let c = (k * ny + j) * nx + i;
-            cells.offsets[c] < cells.offsets[c + 1]
-        };
+        let listed = |i: usize, j: usize, k: usize| !cells.list([i, j, k]).is_empty();
         for k in 0..nz {
             for j in 0..ny {
                 for i in 0..nx {
