@@ -15,6 +15,8 @@ use rayon::prelude::*;
 
 /// Most triangles in a leaf.
 pub const LEAF: usize = 4;
+/// Most triangles whose boxes are tested together (a leaf's, or a stretch of a cell's list).
+const BATCH: usize = 8;
 /// Subtrees with more triangles than this are built in parallel.
 const PARALLEL: usize = 1 << 14;
 /// Marks a child that is a leaf: the rest of the word is its first entry in the leaf order.
@@ -202,6 +204,34 @@ impl Best {
             return;
         }
         self.offer_exact(p, f, t);
+    }
+
+    /// [`Best::offer`] for `n` (at most [`BATCH`]) triangles, `triangle(i)` giving the index
+    /// and corners of the i-th: their boxes first, all into a mask (no branch per triangle),
+    /// then `keep` and the exact distance for each whose box is still in reach, in order.
+    #[inline]
+    fn offer_batch<'a>(
+        &mut self,
+        p: [f32; 3],
+        n: usize,
+        triangle: impl Fn(usize) -> (u32, &'a [[f32; 3]; 3]),
+        keep: &impl Fn(u32) -> bool,
+    ) {
+        let mut gaps = [0.0f32; BATCH];
+        let mut mask = 0u32;
+        for (i, gap) in gaps.iter_mut().enumerate().take(n) {
+            let (lo, hi) = triangle_box(triangle(i).1);
+            *gap = box_distance2(p, lo, hi);
+            mask |= ((*gap <= self.reach) as u32) << i;
+        }
+        while mask != 0 {
+            let i = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            let (f, t) = triangle(i);
+            if gaps[i] <= self.reach && keep(f) {
+                self.offer_exact(p, f, t);
+            }
+        }
     }
 
     /// [`Best::offer`] past `keep` and the box: the exact distance decides.
@@ -427,23 +457,13 @@ impl TriangleBvh {
             let walls = self.cells.visit_ring(p, ring, |ids, gap2| {
                 listed |= !ids.is_empty();
                 if gap2 <= best.distance * best.distance * (1.0 + 1e-9) {
-                    // Eight boxes at a time into a mask, as a leaf's: most are out of reach.
-                    for ids in ids.chunks(8) {
-                        let mut gaps = [0.0f32; 8];
-                        let mut mask = 0u32;
-                        for (i, &f) in ids.iter().enumerate() {
-                            let (lo, hi) = triangle_box(&self.triangles[f as usize]);
-                            gaps[i] = box_distance2(p, lo, hi);
-                            mask |= ((gaps[i] <= best.reach) as u32) << i;
-                        }
-                        while mask != 0 {
-                            let i = mask.trailing_zeros() as usize;
-                            mask &= mask - 1;
-                            let f = ids[i];
-                            if gaps[i] <= best.reach && keep(f) {
-                                best.offer_exact(p, f, &self.triangles[f as usize]);
-                            }
-                        }
+                    for ids in ids.chunks(BATCH) {
+                        best.offer_batch(
+                            p,
+                            ids.len(),
+                            |i| (ids[i], &self.triangles[ids[i] as usize]),
+                            &keep,
+                        );
                     }
                 }
             });
@@ -489,25 +509,9 @@ impl Tree {
             }
             if child & LEAF_BIT != 0 {
                 let start = (child & !LEAF_BIT) as usize;
-                let end = (start + count as usize).min(start + LEAF);
-                let corners = &self.corners[start..end];
-                // Boxes first, all of the leaf's, into a mask (no branch per triangle), then
-                // the exact distance for each triangle whose box is still in reach.
-                let mut gaps = [0.0f32; LEAF];
-                let mut mask = 0u32;
-                for (i, t) in corners.iter().enumerate() {
-                    let (lo, hi) = triangle_box(t);
-                    gaps[i] = box_distance2(p, lo, hi);
-                    mask |= ((gaps[i] <= best.reach) as u32) << i;
-                }
-                while mask != 0 {
-                    let i = mask.trailing_zeros() as usize;
-                    mask &= mask - 1;
-                    let f = self.order[start + i];
-                    if gaps[i] <= best.reach && keep(f) {
-                        best.offer_exact(p, f, &corners[i]);
-                    }
-                }
+                let n = (count as usize).min(LEAF);
+                let (order, corners) = (&self.order[start..start + n], &self.corners[start..]);
+                best.offer_batch(p, n, |i| (order[i], &corners[i]), keep);
                 continue;
             }
             let node = &self.nodes[child as usize];
