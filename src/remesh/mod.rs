@@ -82,12 +82,34 @@ pub enum RemeshError {
     Empty,
     #[error("the remeshed surface is not a valid mesh: {0}")]
     Mesh(#[from] crate::mesh::MeshError),
+    #[error(
+        "the target edges (down to {} mm, median {} mm) would make about {estimated} faces \
+         from {input}, more than {limit}: ask for longer edges",
+        mm(*.smallest_mm),
+        mm(*.median_mm)
+    )]
+    TooFine {
+        estimated: u64,
+        input: usize,
+        limit: u64,
+        smallest_mm: f64,
+        median_mm: f64,
+    },
     #[error("remeshing changed the topology ({what}: {before} before, {after} after); the result was discarded")]
     TopologyChanged {
         what: &'static str,
         before: i64,
         after: i64,
     },
+}
+
+/// A length in mm to three decimals, or three significant digits below 0.01 mm.
+fn mm(x: f64) -> String {
+    if x.abs() >= 0.01 || x == 0.0 {
+        format!("{x:.3}")
+    } else {
+        format!("{x:.2e}")
+    }
 }
 
 /// A remeshed surface.
@@ -226,6 +248,7 @@ pub fn remesh(
             *s = s.min(a);
         }
     }
+    sizing::check_output_size(mesh, &size)?;
     let reference = Reference::build(mesh, &topology, face_ids, &size);
     let input_size = size.clone();
     let pos: Vec<[f64; 3]> = mesh.positions().iter().map(|p| p.map(f64::from)).collect();

@@ -191,3 +191,50 @@ pub fn curvature_size(
         })
         .collect()
 }
+
+/// Most faces a remesh may make: this many times the input's, and at least [`MIN_BUDGET`].
+/// Halving every edge four times stays within it; a target that asks for more is almost
+/// always a bad size (a relative target on a surface whose local radius came out tiny), and
+/// splitting towards it would fill the memory before it ended.
+const GROWTH_BUDGET: u64 = 256;
+/// The budget of a small input (faces).
+const MIN_BUDGET: u64 = 1 << 21;
+
+/// Refuses targets that would make more faces than the budget allows, estimated before any
+/// split: each face's area over that of an equilateral triangle with its corners' mean target
+/// edge (`size`, mm, per vertex).
+pub fn check_output_size(mesh: &Mesh, size: &[f64]) -> Result<(), super::RemeshError> {
+    let p = mesh.positions();
+    let equilateral = 3f64.sqrt() / 4.0;
+    let estimated: f64 = mesh
+        .triangles()
+        .par_iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|v| p[v as usize].map(f64::from));
+            let n = crate::mesh::geometry::cross64(
+                std::array::from_fn(|k| b[k] - a[k]),
+                std::array::from_fn(|k| c[k] - a[k]),
+            );
+            let area = 0.5 * crate::mesh::geometry::dot64(n, n).sqrt();
+            let edge = t.iter().map(|&v| size[v as usize]).sum::<f64>() / 3.0;
+            area / (equilateral * edge * edge)
+        })
+        .sum();
+    let limit = (GROWTH_BUDGET * mesh.n_triangles() as u64).max(MIN_BUDGET);
+    if estimated.is_nan() || estimated > limit as f64 {
+        let mut sorted = size.to_vec();
+        sorted.sort_by(|a, b| a.total_cmp(b));
+        return Err(super::RemeshError::TooFine {
+            estimated: if estimated.is_finite() {
+                estimated.round() as u64
+            } else {
+                u64::MAX
+            },
+            input: mesh.n_triangles(),
+            limit,
+            smallest_mm: sorted.first().copied().unwrap_or(0.0),
+            median_mm: sorted.get(sorted.len() / 2).copied().unwrap_or(0.0),
+        });
+    }
+    Ok(())
+}

@@ -216,6 +216,27 @@ fn bad_requests_are_refused() {
             Err(RemeshError::Target(_))
         ));
     }
+    // Edges of 0.01 mm on a 10 mm sphere: about 29 million faces, refused before a split
+    // (splitting towards them filled the memory and aborted).
+    let big = icosphere(4, 10.0);
+    let ids = vec![1; big.n_triangles()];
+    match remesh(&big, &ids, &RemeshParams::uniform(0.01)) {
+        Err(RemeshError::TooFine {
+            estimated,
+            input,
+            limit,
+            smallest_mm,
+            median_mm,
+        }) => {
+            // Area 1257 mm² over equilateral faces of 0.01 mm (the icosphere's area is a
+            // little below the sphere's).
+            assert!((2.6e7..2.95e7).contains(&(estimated as f64)), "{estimated}");
+            assert_eq!(input, 5120);
+            assert_eq!(limit, 1 << 21); // the floor for small inputs, above 256 x 5120
+            assert_eq!((smallest_mm, median_mm), (0.01, 0.01));
+        }
+        other => panic!("{other:?}"),
+    }
     // Two faces on one directed edge.
     let m = Mesh::new(
         vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
