@@ -525,10 +525,11 @@ impl Tree {
             // The children in reach, nearest pushed last (searched first), without a branch
             // per child: which of four children are in reach and in what order is data the
             // branch predictor cannot learn. Each child gets a key, its distance's bits (a
-            // non-negative f32 orders as its bits) with the low two traded for its slot, one
-            // step up so that a key is never 0, which marks a child out of reach; four keys
-            // sorted by decreasing value by a sorting network of min and max, and all four
-            // entries written, only the hits counted.
+            // non-negative f32 orders as its bits; the sign bit is cleared, so -0 is 0) with
+            // the low two traded for its slot, one step up so that a key is never 0, which
+            // marks a child out of reach; the four keys sorted by decreasing value by a
+            // sorting network of min and max, and all four entries written, only the hits
+            // counted.
             let mut keys = [0u32; 4];
             let mut n_hits = 0;
             // Only a leaf has a disk.
