@@ -665,16 +665,17 @@ fn turning_border(
         heap.push(std::cmp::Reverse((0u32, v, i)));
     }
     let mut turned = vec![false; border.len()];
+    let turned_from = at_least_angle(normal, turn_deg);
     while let Some(std::cmp::Reverse((d_bits, v, source))) = heap.pop() {
         let d = f32::from_bits(d_bits);
         if best.distance[v as usize] < d {
             continue;
         }
-        for &f in topology.vertex_faces(v as usize) {
-            let n = face_normals[f as usize];
-            if n != [0.0; 3] && angle_deg(n, normal) >= turn_deg {
-                turned[source] = true;
-            }
+        // A source that has turned stays turned; its search goes on only to keep the other
+        // sources' nearest vertices what they were.
+        if !turned[source] {
+            turned[source] = (topology.vertex_faces(v as usize).iter())
+                .any(|&f| turned_from(face_normals[f as usize]));
         }
         let pv = p[v as usize];
         for &u in topology.neighbors(v as usize) {
@@ -691,6 +692,28 @@ fn turning_border(
         }
     }
     turned.iter().filter(|&&t| t).count()
+}
+
+/// A test of whether a face normal is at least `turn_deg` from `normal` (unit), deciding as
+/// `angle_deg(n, normal) >= turn_deg` does, zero normals excepted (never): by the cosine where
+/// it is clear by a wide margin (1e-4, thousands of times the arc cosine's rounding), by the arc
+/// cosine only near the limit.
+fn at_least_angle(normal: [f32; 3], turn_deg: f32) -> impl Fn([f32; 3]) -> bool {
+    let quick = turn_deg > 0.0 && turn_deg < 180.0;
+    let cos_limit = f64::from(turn_deg).to_radians().cos();
+    move |n: [f32; 3]| {
+        if n == [0.0; 3] {
+            return false;
+        }
+        let cos = f64::from(dot(n, normal));
+        if quick && cos < cos_limit - 1e-4 {
+            return true;
+        }
+        if quick && cos > cos_limit + 1e-4 {
+            return false;
+        }
+        angle_deg(n, normal) >= turn_deg
+    }
 }
 
 /// Smallest extent of a region within its plane (mm): four standard deviations along the

@@ -317,7 +317,7 @@ impl Topology {
     /// The components, found once (a serial union-find over every edge).
     fn components(&self) -> &(Vec<u32>, usize) {
         self.components
-            .get_or_init(|| components(self.n_vertices(), self.edges(), &self.vf_offsets))
+            .get_or_init(|| components(self, &self.vf_offsets))
     }
 
     /// Whether every edge has two triangles, consistently oriented, and every vertex one fan.
@@ -351,8 +351,10 @@ fn vertex_blocks(n: usize) -> Vec<Range<usize>> {
         .collect()
 }
 
-/// Union-find over edges; components numbered in order of their smallest vertex.
-fn components(n: usize, edges: &[[u32; 2]], vf_offsets: &[u32]) -> (Vec<u32>, usize) {
+/// Union-find over the edges, in the order [`Topology::edges`] lists them but without the
+/// list; components numbered in order of their smallest vertex.
+fn components(topology: &Topology, vf_offsets: &[u32]) -> (Vec<u32>, usize) {
+    let n = topology.n_vertices();
     let mut parent: Vec<u32> = (0..n as u32).collect();
     fn find(parent: &mut [u32], mut x: u32) -> u32 {
         while parent[x as usize] != x {
@@ -362,7 +364,9 @@ fn components(n: usize, edges: &[[u32; 2]], vf_offsets: &[u32]) -> (Vec<u32>, us
         }
         x
     }
-    for &[a, b] in edges {
+    let edges = (0..n as u32)
+        .flat_map(|a| (topology.larger_neighbors(a as usize).iter()).map(move |&b| (a, b)));
+    for (a, b) in edges {
         let (ra, rb) = (find(&mut parent, a), find(&mut parent, b));
         if ra != rb {
             // Smaller index becomes the root, so roots are each component's smallest vertex.
