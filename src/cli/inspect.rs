@@ -142,14 +142,24 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     };
     // The report and the context analysis side by side: both only read the mesh, and each
     // has serial stretches the other fills.
+    // The context analysis finds the report's average normal curvature on its way.
     let (report, analysis) = rayon::join(
-        || destair::report::inspect::inspect(&mesh, &loaded, &topology),
+        || destair::report::inspect::inspect_but_curvature(&mesh, &loaded, &topology),
         || {
             trees.as_ref().map(|trees| {
                 let refs: Vec<&destair::spatial::TriangleBvh> = trees.iter().collect();
-                destair::weights::context_weights(&loaded.mesh, &topology, &ctx.params(true), &refs)
+                let params = destair::weights::ContextParams {
+                    measure_curvature: true,
+                    ..ctx.params(true)
+                };
+                destair::weights::context_weights(&loaded.mesh, &topology, &params, &refs)
             })
         },
+    );
+    let report = report.with_curvature(
+        (analysis.as_ref())
+            .and_then(|a| a.average_normal_curvature_deg)
+            .unwrap_or_else(|| destair::metrics::average_normal_curvature(&loaded.mesh, &topology)),
     );
     let summary = analysis
         .as_ref()

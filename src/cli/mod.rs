@@ -275,6 +275,7 @@ impl ContextArgs {
                 CapsArg::Smooth => CapPolicy::Smooth,
             },
             find_smoothed_caps: true,
+            measure_curvature: false,
             cap_params: Default::default(),
             distance_scaling: self.distance_scaling,
             combine: match self.combine {

@@ -390,6 +390,7 @@ pub fn resolve(s: &Settings) -> Result<StructureSettings, String> {
             staircase_params,
             caps,
             find_smoothed_caps: true,
+            measure_curvature: false,
             cap_params: Default::default(),
             distance_scaling,
             combine,

@@ -169,7 +169,8 @@ impl<'a> TurnLimits<'a> {
                 .map(|&bits| bits >> k & 1 == 1)
                 .collect();
         }
-        self.within_each(&[(max_deg, max_deg_per_mm)])
+        self.within_each(&[(max_deg, max_deg_per_mm)], false)
+            .0
             .into_iter()
             .map(|bits| bits == 1)
             .collect()
@@ -179,16 +180,30 @@ impl<'a> TurnLimits<'a> {
     /// degrees per mm) in one walk over every vertex's faces, for the analyses that ask for
     /// them later: one angle per face instead of one per face and limit.
     pub fn remember(&mut self, limits: &[(f32, f32)]) {
+        self.remember_and_measure(limits, false);
+    }
+
+    /// [`TurnLimits::remember`], and in the same walk the mesh's average normal curvature,
+    /// given to the bit as [`average_normal_curvature`] gives it (an inspect report's figure,
+    /// for the price of visiting every face).
+    pub fn remember_with_curvature(&mut self, limits: &[(f32, f32)]) -> f64 {
+        self.remember_and_measure(limits, true).unwrap_or(0.0)
+    }
+
+    fn remember_and_measure(&mut self, limits: &[(f32, f32)], widest: bool) -> Option<f64> {
         let limits = &limits[..limits.len().min(8)];
-        self.remembered = self.within_each(limits);
+        let (flags, curvature) = self.within_each(limits, widest);
+        self.remembered = flags;
         self.remembered_limits = limits
             .iter()
             .map(|&(deg, rate)| (deg.to_bits(), rate.to_bits()))
             .collect();
+        curvature
     }
 
-    /// Per vertex, bit `k` set when the vertex is within `limits[k]` (at most eight).
-    fn within_each(&self, limits: &[(f32, f32)]) -> Vec<u8> {
+    /// Per vertex, bit `k` set when the vertex is within `limits[k]` (at most eight); with
+    /// `widest`, also the average normal curvature (degrees) found in the same walk.
+    fn within_each(&self, limits: &[(f32, f32)], widest: bool) -> (Vec<u8>, Option<f64>) {
         /// One pair of limits, with what the quick tests need.
         struct Limit {
             max_deg: f32,
@@ -196,6 +211,12 @@ impl<'a> TurnLimits<'a> {
             quick_limit: bool,
             tan_max: f64,
             max_rate: f64,
+            /// The angle limit is at least 1e-6 degrees and below 1.2 radians: a tangent
+            /// above `tan_over` is then over it by far more than rounding.
+            quick_over: bool,
+            tan_over: f64,
+            /// The rate limit is finite and at least 1e-6 degrees per mm.
+            quick_rate_over: bool,
         }
         let (p, triangles) = (self.mesh.positions(), self.mesh.triangles());
         // Limits in radians, less a relative margin of 1e-6 for the quick tests (which need a
@@ -212,72 +233,119 @@ impl<'a> TurnLimits<'a> {
                     quick_limit: max_rad * safe < std::f64::consts::FRAC_PI_2,
                     tan_max: (max_rad * safe).tan(),
                     max_rate: f64::from(max_deg_per_mm).to_radians(),
+                    quick_over: max_deg >= 1e-6 && max_rad < 1.2,
+                    tan_over: max_rad.tan() * OVER,
+                    quick_rate_over: max_deg_per_mm >= 1e-6 && max_deg_per_mm.is_finite(),
                 }
             })
             .collect();
+        /// A tangent this much over a limit's puts the angle over the limit by more than 2e-6
+        /// of it (limits below 1.2 radians), far beyond the rounding of the exact test.
+        const OVER: f64 = 1.0 + 1e-5;
         let all: u8 = ((1u16 << limits.len()) - 1) as u8;
-        (0..self.mesh.n_vertices())
-            .into_par_iter()
-            .map(|v| {
-                let n = self.vnormals[v];
-                if n == [0.0; 3] {
-                    return 0;
+        // Per vertex: the flags, and the normal curvature (degrees) when `widest` asks for it
+        // (then every face is visited; otherwise the walk stops once every limit is exceeded).
+        let vertex = |v: usize| -> (u8, Option<f32>) {
+            let n = self.vnormals[v];
+            if n == [0.0; 3] {
+                return (0, None);
+            }
+            let mut defined = false;
+            // Limits not yet exceeded by any face.
+            let mut open = all;
+            // The widest (sine, cosine) so far, picked as `FaceAngles::widest_deg` picks it.
+            let mut wide: Option<(f64, f64)> = None;
+            for &f in self.topology.vertex_faces(v) {
+                let m = self.fnormals[f as usize];
+                if m == [0.0; 3] {
+                    continue;
                 }
-                let mut defined = false;
-                // Limits not yet exceeded by any face.
-                let mut open = all;
-                for &f in self.topology.vertex_faces(v) {
-                    let m = self.fnormals[f as usize];
-                    if m == [0.0; 3] {
+                defined = true;
+                let (sin, cos) = sin_cos_between(n, m);
+                if widest {
+                    wide = match wide {
+                        Some((s, c)) if !super::wider_angle(sin, cos, s, c) => wide,
+                        _ => Some((sin, cos)),
+                    };
+                }
+                let mut angle: Option<f64> = None;
+                let mut distance: Option<f64> = None;
+                for (k, limit) in limits.iter().enumerate() {
+                    if open >> k & 1 == 0 {
                         continue;
                     }
-                    defined = true;
-                    let (sin, cos) = sin_cos_between(n, m);
-                    let mut angle: Option<f64> = None;
-                    let mut distance: Option<f64> = None;
-                    for (k, limit) in limits.iter().enumerate() {
-                        if open >> k & 1 == 0 {
-                            continue;
-                        }
-                        let quick = limit.quick_limit && cos > 0.0;
-                        // Below the angle limit for certain when tan(angle) is below
-                        // tan(limit).
-                        if !(quick && sin <= cos * limit.tan_max) {
-                            let a = *angle.get_or_insert_with(|| sin.atan2(cos));
-                            if !at_most(a.to_degrees() as f32, limit.max_deg) {
-                                open &= !(1 << k);
-                                continue;
-                            }
-                        }
-                        if limit.max_deg_per_mm == f32::INFINITY {
-                            continue;
-                        }
-                        let d = *distance
-                            .get_or_insert_with(|| centroid_distance(p, triangles[f as usize], v));
-                        if d <= 0.0 {
-                            // An infinite rate: within only an infinite limit.
-                            open &= !(1 << k);
-                            continue;
-                        }
-                        if quick && sin <= cos * limit.max_rate * safe * d {
-                            continue;
-                        }
+                    let quick = limit.quick_limit && cos > 0.0;
+                    // Below the angle limit for certain when tan(angle) is below tan(limit),
+                    // over it when tan(angle) is clearly above.
+                    if quick && limit.quick_over && sin > cos * limit.tan_over {
+                        open &= !(1 << k);
+                        continue;
+                    }
+                    if !(quick && sin <= cos * limit.tan_max) {
                         let a = *angle.get_or_insert_with(|| sin.atan2(cos));
-                        if !at_most((a / d).to_degrees() as f32, limit.max_deg_per_mm) {
+                        if !at_most(a.to_degrees() as f32, limit.max_deg) {
                             open &= !(1 << k);
+                            continue;
                         }
                     }
-                    if open == 0 {
-                        return 0;
+                    if limit.max_deg_per_mm == f32::INFINITY {
+                        continue;
+                    }
+                    let d = *distance
+                        .get_or_insert_with(|| centroid_distance(p, triangles[f as usize], v));
+                    if d <= 0.0 {
+                        // An infinite rate: within only an infinite limit.
+                        open &= !(1 << k);
+                        continue;
+                    }
+                    if quick && sin <= cos * limit.max_rate * safe * d {
+                        continue;
+                    }
+                    // Over the rate for certain when tan(angle) is clearly above
+                    // theta / (1 - theta^2 / 2) >= tan(theta), theta = rate x distance < 1.
+                    let theta = limit.max_rate * d;
+                    if quick
+                        && limit.quick_rate_over
+                        && theta < 1.0
+                        && sin * (1.0 - 0.5 * theta * theta) > cos * theta * OVER
+                    {
+                        open &= !(1 << k);
+                        continue;
+                    }
+                    let a = *angle.get_or_insert_with(|| sin.atan2(cos));
+                    if !at_most((a / d).to_degrees() as f32, limit.max_deg_per_mm) {
+                        open &= !(1 << k);
                     }
                 }
-                if defined {
-                    open
-                } else {
-                    0
+                if open == 0 && !widest {
+                    return (0, None);
                 }
+            }
+            let curvature = wide.map(|(sin, cos)| sin.atan2(cos).to_degrees() as f32);
+            (if defined { open } else { 0 }, curvature)
+        };
+        // Blocks of `REDUCE_BLOCK` vertices, each curvature added as `average_normal_curvature`
+        // adds it: the same bits.
+        let mut flags = vec![0u8; self.mesh.n_vertices()];
+        let blocks: Vec<(f64, usize)> = flags
+            .par_chunks_mut(REDUCE_BLOCK)
+            .enumerate()
+            .map(|(b, out)| {
+                let mut n_defined = 0;
+                let sum = (out.iter_mut().enumerate())
+                    .map(|(i, slot)| {
+                        let (bits, curvature) = vertex(b * REDUCE_BLOCK + i);
+                        *slot = bits;
+                        curvature.map_or(0.0, |c| {
+                            n_defined += 1;
+                            f64::from(c)
+                        })
+                    })
+                    .sum::<f64>();
+                (sum, n_defined)
             })
-            .collect()
+            .collect();
+        (flags, widest.then(|| mean_of_blocks(&blocks)))
     }
 }
 
@@ -307,6 +375,11 @@ pub fn average_normal_curvature(mesh: &Mesh, topology: &Topology) -> f64 {
             (sum, n_defined)
         })
         .collect();
+    mean_of_blocks(&blocks)
+}
+
+/// The mean of per-block (sum, count) pairs, the sums added in block order; 0 if no count.
+fn mean_of_blocks(blocks: &[(f64, usize)]) -> f64 {
     let n_defined: usize = blocks.iter().map(|b| b.1).sum();
     if n_defined == 0 {
         return 0.0;

@@ -241,6 +241,32 @@ impl ContextSummary {
 
 /// Builds the inspect report for a loaded mesh.
 pub fn inspect(path: &Path, loaded: &LoadedMesh, topology: &Topology) -> InspectReport {
+    inspect_but_curvature(path, loaded, topology)
+        .with_curvature(average_normal_curvature(&loaded.mesh, topology))
+}
+
+/// An inspect report but for the mesh's average normal curvature: what is measured beside a
+/// context analysis, which finds that figure on its way
+/// ([`Context::average_normal_curvature_deg`](crate::weights::Context)).
+pub struct ReportButCurvature(InspectReport);
+
+impl ReportButCurvature {
+    /// The report, with the mesh's average normal curvature (degrees).
+    pub fn with_curvature(self, average_normal_curvature_deg: f64) -> InspectReport {
+        InspectReport {
+            average_normal_curvature_deg,
+            ..self.0
+        }
+    }
+}
+
+/// [`inspect`] without the average normal curvature, for [`ReportButCurvature::with_curvature`]
+/// to complete.
+pub fn inspect_but_curvature(
+    path: &Path,
+    loaded: &LoadedMesh,
+    topology: &Topology,
+) -> ReportButCurvature {
     let mesh = &loaded.mesh;
     let p = mesh.positions();
     let loops = topology.boundary_loops();
@@ -269,7 +295,7 @@ pub fn inspect(path: &Path, loaded: &LoadedMesh, topology: &Topology) -> Inspect
             }
         })
         .collect();
-    InspectReport {
+    ReportButCurvature(InspectReport {
         path: path.display().to_string(),
         format: loaded.format,
         n_vertices: mesh.n_vertices(),
@@ -288,11 +314,11 @@ pub fn inspect(path: &Path, loaded: &LoadedMesh, topology: &Topology) -> Inspect
         euler_characteristic: topology.euler_characteristic(),
         n_unreferenced_vertices: topology.unreferenced_vertices().len(),
         n_degenerate_triangles: topology.degenerate_triangles().len(),
-        average_normal_curvature_deg: average_normal_curvature(mesh, topology),
+        average_normal_curvature_deg: 0.0,
         voxel_size: voxel_size(mesh, topology),
         comments: loaded.meta.comments.clone(),
         warnings: loaded.warnings.clone(),
-    }
+    })
 }
 
 impl InspectReport {

@@ -48,6 +48,11 @@ pub struct ContextParams {
     /// default). `smooth` turns it off: caps smoothed like the rest change nothing it writes.
     #[serde(skip)]
     pub find_smoothed_caps: bool,
+    /// Also find the mesh's average normal curvature ([`Context::average_normal_curvature_deg`])
+    /// in the walk the flat-vertex tests make, for an inspect report (off by default: it costs
+    /// visiting every face of every vertex).
+    #[serde(skip)]
+    pub measure_curvature: bool,
     pub cap_params: CapParams,
     /// Scaling of the distances to the reference structures (used when references are given).
     pub distance_scaling: DistanceScaling,
@@ -62,6 +67,7 @@ impl Default for ContextParams {
             staircase_params: StaircaseParams::default(),
             caps: CapPolicy::Preserve,
             find_smoothed_caps: true,
+            measure_curvature: false,
             cap_params: CapParams::default(),
             distance_scaling: DistanceScaling::Linear,
             combine: Combine::Product,
@@ -82,12 +88,20 @@ pub struct Context {
     pub reference_distance_mm: Option<Vec<f64>>,
     /// The final weights.
     pub weights: VertexWeights,
+    /// The mesh's average normal curvature (degrees) as
+    /// [`average_normal_curvature`](crate::metrics::average_normal_curvature) gives it to the
+    /// bit, found in the walk over every vertex's angles that the flat-vertex tests make, when
+    /// [`ContextParams::measure_curvature`] asks for it; None otherwise, when caps were not
+    /// looked for, or when the mesh was analysed in another numbering (whose sum would round
+    /// differently).
+    pub average_normal_curvature_deg: Option<f64>,
 }
 
 impl Context {
     /// The context of a mesh renumbered by `order`, in the mesh's own numbering (the faces
     /// kept their order).
     fn numbered_back(mut self, order: &Renumbering) -> Context {
+        self.average_normal_curvature_deg = None;
         self.weights = self.weights.scattered(order);
         if let Some(s) = &mut self.staircase {
             s.weights = s.weights.scattered(order);
@@ -236,7 +250,7 @@ pub fn context_in_mesh_order(
     // first, and the stack axis, the staircases and cap detection's look at the mesh itself
     // (which need nothing from it) fill the other cores meanwhile.
     let search = CapSearch::new(mesh, topology);
-    let (smoothed_look, (stairs, plain_look)) = rayon::join(
+    let (smoothed_look, (curvature, (stairs, plain_look))) = rayon::join(
         || search.on_smoothed_copy(mesh, topology, &params.cap_params),
         || {
             // Face and vertex normals once, for the stack axis, the staircases and the caps;
@@ -246,13 +260,19 @@ pub fn context_in_mesh_order(
             if estimates_axis {
                 limits.extend_from_slice(&axis_limits);
             }
-            turns.remember(&limits);
+            let curvature = if params.measure_curvature {
+                Some(turns.remember_with_curvature(&limits))
+            } else {
+                turns.remember(&limits);
+                None
+            };
             // Cap candidates need nothing from the staircases but their reach, applied at
             // the end.
-            rayon::join(
+            let found = rayon::join(
                 || staircases(mesh, topology, &turns, params, &axis_params),
                 || search.on_mesh(&turns, topology, &params.cap_params),
-            )
+            );
+            (curvature, found)
         },
     );
     drop(search);
@@ -262,7 +282,9 @@ pub fn context_in_mesh_order(
         .as_ref()
         .map(|s| s.distance_mm.iter().map(|d| d.is_finite()).collect());
     let caps = candidates.settle(mesh, reach.as_deref(), &params.cap_params);
-    weighted(mesh, params, references, stairs, caps)
+    let mut context = weighted(mesh, params, references, stairs, caps);
+    context.average_normal_curvature_deg = curvature;
+    context
 }
 
 /// The weights from the staircases (estimated axis, axis used, staircase weights), the caps
@@ -306,5 +328,6 @@ fn weighted(
         caps,
         reference_distance_mm,
         weights,
+        average_normal_curvature_deg: None,
     }
 }

@@ -331,6 +331,29 @@ fn the_staircase_border_check_keeps_the_caps_within_reach() {
     assert_eq!(settled, kept);
 }
 
+/// The context gives the mesh's average normal curvature, to the bit, when asked; not
+/// otherwise (nor for a scattered numbering, which
+/// `a_scattered_mesh_gets_the_context_of_its_own_order` checks).
+#[test]
+fn context_measures_the_average_curvature_when_asked() {
+    let m = rotated("cap-cylinder", 20.0, 35.0).meshes[0].1.clone();
+    let t = Topology::build(&m);
+    let want = average_normal_curvature(&m, &t);
+    let asked = ContextParams {
+        measure_curvature: true,
+        ..Default::default()
+    };
+    let found = context_weights(&m, &t, &asked, &[]);
+    assert_eq!(
+        found.average_normal_curvature_deg.map(f64::to_bits),
+        Some(want.to_bits())
+    );
+    assert!(!found.caps.caps.is_empty());
+    let plain = context_weights(&m, &t, &ContextParams::default(), &[]);
+    assert_eq!(plain.average_normal_curvature_deg, None);
+    assert_eq!(plain.weights, found.weights);
+}
+
 /// Uniform and context-aware Laplace (20 iterations, lambda 0.5, axis z, beta_min 0) on a
 /// phantom: returns (mesh, weights analysis, context-aware result, relative volume changes).
 fn uniform_versus_context(name: &str) -> (Mesh, destair::weights::Context, Mesh, f64, f64) {
@@ -639,7 +662,14 @@ fn a_scattered_mesh_gets_the_context_of_its_own_order() {
     assert!(is_scattered(offsets, neighbors));
     let reference = TriangleBvh::build(cylinder);
     let params = ContextParams::default();
-    let fast = context_weights(&mesh, &topology, &params, &[&reference]);
+    // Asked for the curvature too, which an analysis in another order does not give (its sum
+    // would round differently from the report's).
+    let asked = ContextParams {
+        measure_curvature: true,
+        ..params
+    };
+    let fast = context_weights(&mesh, &topology, &asked, &[&reference]);
+    assert_eq!(fast.average_normal_curvature_deg, None);
     let direct = context_in_mesh_order(&mesh, &topology, &params, &[&reference]);
     // The phantom's own analysis, renumbered like the mesh (vertex i is the phantom's old[i]).
     let own = context_weights(&phantom, &Topology::build(&phantom), &params, &[&reference]);

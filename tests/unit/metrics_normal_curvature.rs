@@ -178,3 +178,37 @@ fn average_is_the_mean_of_the_vertex_curvatures_to_the_bit() {
         want.to_bits()
     );
 }
+
+/// The curvature found in the limits' walk is `average_normal_curvature`'s to the bit (degenerate
+/// faces and folds past 90 degrees mixed in), and the flags are those `remember` finds alone.
+#[test]
+fn curvature_found_with_the_limits_is_the_average_to_the_bit() {
+    let (mut mesh, _, limits) = jittered_turns_and_limits();
+    // Some faces without area, and some folded over.
+    let tris = mesh.triangles().to_vec();
+    let p = mesh.positions_mut();
+    for (i, t) in tris.iter().enumerate().step_by(211) {
+        p[t[1] as usize] = p[t[0] as usize];
+        if i % 2 == 0 {
+            p[t[2] as usize][2] += 5.0;
+        }
+    }
+    let topology = Topology::build(&mesh);
+    let want = average_normal_curvature(&mesh, &topology);
+    assert!(want > 1.0, "{want}");
+    for group in limits.chunks(8).take(6) {
+        let mut alone = TurnLimits::new(&mesh, &topology);
+        alone.remember(group);
+        let mut both = TurnLimits::new(&mesh, &topology);
+        assert_eq!(
+            both.remember_with_curvature(group).to_bits(),
+            want.to_bits()
+        );
+        for &(max_deg, max_per_mm) in group {
+            assert_eq!(
+                alone.within(max_deg, max_per_mm),
+                both.within(max_deg, max_per_mm)
+            );
+        }
+    }
+}
