@@ -111,17 +111,29 @@ pub fn displacement_stats(lengths: &[f64]) -> DisplacementStats {
             bin_width_mm: 0.0,
         };
     }
-    let mut sorted = lengths.to_vec();
-    sorted.par_sort_unstable_by(f64::total_cmp);
-    let max = sorted[n - 1];
-    let quantile = |q: f64| sorted[((q * (n - 1) as f64).round() as usize).min(n - 1)];
+    // Order statistics without a sort: the largest, the median and the 95th percentile are the
+    // values a sort (by `total_cmp`) would put there, found by selection (linear time).
+    let max = (lengths.iter().copied())
+        .max_by(f64::total_cmp)
+        .unwrap_or(0.0);
+    let mut scratch = lengths.to_vec();
+    let rank = |q: f64| ((q * (n - 1) as f64).round() as usize).min(n - 1);
+    let (median_rank, p95_rank) = (rank(0.5), rank(0.95));
+    let (_, &mut median, above) = scratch.select_nth_unstable_by(median_rank, f64::total_cmp);
+    let p95 = if p95_rank > median_rank {
+        *above
+            .select_nth_unstable_by(p95_rank - median_rank - 1, f64::total_cmp)
+            .1
+    } else {
+        median
+    };
     let width = if max > 0.0 {
         max / HISTOGRAM_BINS as f64
     } else {
         0.0
     };
     let mut histogram = vec![0u64; HISTOGRAM_BINS];
-    for &d in &sorted {
+    for &d in lengths {
         let bin = if width > 0.0 {
             ((d / width) as usize).min(HISTOGRAM_BINS - 1)
         } else {
@@ -129,13 +141,21 @@ pub fn displacement_stats(lengths: &[f64]) -> DisplacementStats {
         };
         histogram[bin] += 1;
     }
+    // The zeros a sort would put first: none when anything sorts before -0 (a negative
+    // value, or a NaN with its sign bit set).
+    let smallest = (lengths.iter().copied()).min_by(f64::total_cmp);
+    let n_unmoved = if smallest == Some(0.0) {
+        lengths.iter().filter(|&&d| d == 0.0).count()
+    } else {
+        0
+    };
     DisplacementStats {
         mean_mm: deterministic_sum(n, |i| lengths[i]) / n as f64,
         rms_mm: (deterministic_sum(n, |i| lengths[i] * lengths[i]) / n as f64).sqrt(),
         max_mm: max,
-        median_mm: quantile(0.5),
-        p95_mm: quantile(0.95),
-        n_unmoved: sorted.iter().take_while(|&&d| d == 0.0).count(),
+        median_mm: median,
+        p95_mm: p95,
+        n_unmoved,
         histogram,
         bin_width_mm: width,
     }

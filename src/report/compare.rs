@@ -84,11 +84,13 @@ struct MeshMeasures {
     normal_curvature_deg: [f64; 2],
     min_triangle_angle_deg: [f64; 2],
     voxel_size_mm: Option<[f64; 3]>,
+    displacement: Option<DisplacementStats>,
 }
 
 /// [`compare_prepared`], building the original's topology when none is given. The distances
 /// (hierarchies and queries) and the measures of each mesh on its own (volume, curvature,
-/// angles, voxel size) run side by side: each has serial stretches the other fills.
+/// angles, voxel size) and of the pair (displacements) run side by side: each has serial
+/// stretches the other fills.
 fn compare_measured(
     original: &Mesh,
     topo_o: Option<&Topology>,
@@ -150,11 +152,13 @@ fn compare_measured(
                     min_triangle_angle(smoothed),
                 ],
                 voxel_size_mm: voxel.or_else(|| voxel_size(original, topo_o).spacing()),
+                displacement: same_vertices.then(|| {
+                    displacement_stats(&displacements(original.positions(), smoothed.positions()))
+                }),
             }
         },
     );
-    let displacement = same_vertices
-        .then(|| displacement_stats(&displacements(original.positions(), smoothed.positions())));
+    let displacement = measures.displacement;
     let voxel_size_mm = measures.voxel_size_mm;
     let max_d_voxel_diagonals = voxel_size_mm
         .map(|h| distance.hausdorff_mm / (h[0] * h[0] + h[1] * h[1] + h[2] * h[2]).sqrt());

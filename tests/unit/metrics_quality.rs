@@ -20,6 +20,48 @@ mod tests {
         assert_eq!(s.histogram.iter().sum::<u64>(), 4);
         assert_eq!(s.histogram[HISTOGRAM_BINS - 1], 1);
     }
+
+    /// The statistics as a full sort gives them (the order statistics at their ranks, the zeros
+    /// a sort puts first), for comparison with the selection.
+    fn sorted_stats(lengths: &[f64]) -> (u64, u64, u64, usize) {
+        let mut sorted = lengths.to_vec();
+        sorted.sort_by(f64::total_cmp);
+        let n = sorted.len();
+        let at = |q: f64| sorted[((q * (n - 1) as f64).round() as usize).min(n - 1)].to_bits();
+        let zeros = sorted.iter().take_while(|&&d| d == 0.0).count();
+        (sorted[n - 1].to_bits(), at(0.5), at(0.95), zeros)
+    }
+
+    /// Selection gives the sort's order statistics to the bit on random lengths with ties,
+    /// zeros of both signs, and now and then a NaN of either sign or a negative value.
+    #[test]
+    fn order_statistics_match_a_sort() {
+        let mut rng = fastrand::Rng::with_seed(12);
+        for round in 0..300 {
+            let n = 1 + rng.usize(0..(if round % 10 == 0 { 5000 } else { 40 }));
+            let lengths: Vec<f64> = (0..n)
+                .map(|_| match rng.u32(0..20) {
+                    0 => 0.0,
+                    1 => -0.0,
+                    2 => 1.25,
+                    3 if round % 7 == 0 => f64::NAN,
+                    4 if round % 11 == 0 => -f64::NAN,
+                    5 if round % 13 == 0 => -0.5,
+                    _ => rng.f64() * 3.0,
+                })
+                .collect();
+            let s = displacement_stats(&lengths);
+            let (max, median, p95, zeros) = sorted_stats(&lengths);
+            let got = (
+                s.max_mm.to_bits(),
+                s.median_mm.to_bits(),
+                s.p95_mm.to_bits(),
+            );
+            assert_eq!(got, (max, median, p95), "round {round}, n {n}");
+            assert_eq!(s.n_unmoved, zeros, "round {round}, n {n}");
+            assert_eq!(s.histogram.iter().sum::<u64>(), n as u64);
+        }
+    }
 }
 
 mod shape_tests {
