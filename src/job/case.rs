@@ -16,7 +16,7 @@ use crate::report::compare::compare_prepared;
 use crate::report::inspect::context_summary;
 use crate::smooth::{boundary_vertices, smooth};
 use crate::spatial::TriangleBvh;
-use crate::weights::{context_weights, AxisChoice};
+use crate::weights::{context_weights, AxisChoice, ContextParams};
 use std::collections::BTreeMap;
 use std::time::Instant;
 
@@ -480,7 +480,12 @@ fn process_structure(
         .source
         .as_ref()
         .and_then(|s| header_geometry(&place, s));
-    let mut context_params = settings.context.clone();
+    // The metrics need the input's average normal curvature, which the context finds on its
+    // way.
+    let mut context_params = ContextParams {
+        measure_curvature: true,
+        ..settings.context.clone()
+    };
     if let Some((_, axis)) = header {
         context_params.axis = match settings.context.axis {
             AxisChoice::Auto => AxisChoice::Given(axis),
@@ -604,9 +609,19 @@ fn process_structure(
                 .map(|g| (n.as_str(), m.as_ref(), g))
         })
         .collect();
+    // The context found the input's curvature; a constrained label surface is measured
+    // against its binary extraction instead.
+    let known_curvature = (file.binary.is_none())
+        .then(|| {
+            context
+                .as_ref()
+                .and_then(|c| c.average_normal_curvature_deg)
+        })
+        .flatten();
     let metrics = compare_prepared(
         before,
         &topology,
+        known_curvature,
         &smoothed,
         &named_refs,
         voxel.map(|v| v.map(f64::from)),

@@ -61,20 +61,30 @@ pub fn compare(
         .zip(&trees)
         .map(|((n, m), g)| (n.as_str(), m, g))
         .collect();
-    compare_measured(original, None, smoothed, &refs, voxel)
+    compare_measured(original, None, None, smoothed, &refs, voxel)
 }
 
 /// [`compare`] reusing what the caller already has: the original's topology (topology depends
-/// only on the triangles, so it also serves a smoothed mesh with the same triangles) and the
-/// references' hierarchies.
+/// only on the triangles, so it also serves a smoothed mesh with the same triangles), the
+/// original's average normal curvature when a context analysis found it (degrees:
+/// [`Context::average_normal_curvature_deg`](crate::weights::Context), the same bits as
+/// measuring it here) and the references' hierarchies.
 pub fn compare_prepared(
     original: &Mesh,
     topo_o: &Topology,
+    original_curvature_deg: Option<f64>,
     smoothed: &Mesh,
     references: &[(&str, &Mesh, &TriangleBvh)],
     voxel: Option<[f64; 3]>,
 ) -> CompareReport {
-    compare_measured(original, Some(topo_o), smoothed, references, voxel)
+    compare_measured(
+        original,
+        Some(topo_o),
+        original_curvature_deg,
+        smoothed,
+        references,
+        voxel,
+    )
 }
 
 /// The measures a report is made of, one pair per mesh.
@@ -94,6 +104,7 @@ struct MeshMeasures {
 fn compare_measured(
     original: &Mesh,
     topo_o: Option<&Topology>,
+    original_curvature_deg: Option<f64>,
     smoothed: &Mesh,
     references: &[(&str, &Mesh, &TriangleBvh)],
     voxel: Option<[f64; 3]>,
@@ -144,7 +155,8 @@ fn compare_measured(
                 volume_mm3: [vol_o.mm3, vol_s.mm3],
                 loops_closed_by_fans: vol_o.loops_closed_by_fans.max(vol_s.loops_closed_by_fans),
                 normal_curvature_deg: [
-                    average_normal_curvature(original, topo_o),
+                    original_curvature_deg
+                        .unwrap_or_else(|| average_normal_curvature(original, topo_o)),
                     average_normal_curvature(smoothed, topo_s),
                 ],
                 min_triangle_angle_deg: [
