@@ -141,8 +141,8 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         None
     };
     // The report and the context analysis side by side: both only read the mesh, and each
-    // has serial stretches the other fills.
-    // The context analysis finds the report's average normal curvature on its way.
+    // has serial stretches the other fills. The context finds the report's average normal
+    // curvature on its way (measured after when there is no context).
     let (report, analysis) = rayon::join(
         || destair::report::inspect::inspect_but_curvature(&mesh, &loaded, &topology),
         || {

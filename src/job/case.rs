@@ -481,9 +481,9 @@ fn process_structure(
         .as_ref()
         .and_then(|s| header_geometry(&place, s));
     // The metrics need the input's average normal curvature, which the context finds on its
-    // way.
+    // way (a constrained label surface is measured against its binary extraction instead).
     let mut context_params = ContextParams {
-        measure_curvature: true,
+        measure_curvature: file.binary.is_none(),
         ..settings.context.clone()
     };
     if let Some((_, axis)) = header {
@@ -609,15 +609,9 @@ fn process_structure(
                 .map(|g| (n.as_str(), m.as_ref(), g))
         })
         .collect();
-    // The context found the input's curvature; a constrained label surface is measured
-    // against its binary extraction instead.
-    let known_curvature = (file.binary.is_none())
-        .then(|| {
-            context
-                .as_ref()
-                .and_then(|c| c.average_normal_curvature_deg)
-        })
-        .flatten();
+    // The input's curvature, found by the context (not asked for where `before` is a binary
+    // extraction: see `context_params`).
+    let known_curvature = (context.as_ref()).and_then(|c| c.average_normal_curvature_deg);
     let metrics = compare_prepared(
         before,
         &topology,
