@@ -364,14 +364,13 @@ fn caps_of(
         let mut members = vec![start as u32];
         region[start] = id;
         let mut i = 0;
-        while i < members.len() {
-            adjacency.of(mesh, topology, members[i], &mut scratch);
-            for &g in &scratch {
+        while let Some(&f) = members.get(i) {
+            adjacency.each((mesh, topology), f, &mut scratch, |g| {
                 if flat[g as usize] && region[g as usize] == NONE {
                     region[g as usize] = id;
                     members.push(g);
                 }
-            }
+            });
             i += 1;
         }
         regions.push(members);
@@ -402,19 +401,17 @@ fn caps_of(
         let mut next = 0;
         while let Some(&f) = faces.get(next) {
             next += 1;
-            adjacency.of(mesh, topology, f, &mut scratch);
-            for &g in &scratch {
+            adjacency.each((mesh, topology), f, &mut scratch, |g| {
                 let gi = g as usize;
-                if region[gi] != NONE || degenerate(gi) {
-                    continue;
-                }
-                if dot(normals[gi], normals[f as usize]) >= cos_step
+                if region[gi] == NONE
+                    && !degenerate(gi)
+                    && dot(normals[gi], normals[f as usize]) >= cos_step
                     && dot(normals[gi], mean) >= cos_total
                 {
                     region[gi] = id;
                     faces.push(g);
                 }
-            }
+            });
         }
     }
     // A grown region's verdict depends only on its faces (a face goes to the first region

@@ -33,13 +33,24 @@ impl FaceNeighbours {
             .into()
     }
 
-    /// The edge neighbours of face `f` into `out`, as [`edge_neighbours`] gives them.
-    pub(crate) fn of(&self, mesh: &Mesh, topology: &Topology, f: u32, out: &mut Vec<u32>) {
+    /// Calls `visit` with each edge neighbour of face `f`, in the order [`edge_neighbours`]
+    /// gives them: from the table, or (a face on a non-manifold edge) looked up again into
+    /// `scratch`.
+    #[inline]
+    pub(crate) fn each(
+        &self,
+        (mesh, topology): (&Mesh, &Topology),
+        f: u32,
+        scratch: &mut Vec<u32>,
+        mut visit: impl FnMut(u32),
+    ) {
         if self.more[f as usize] {
-            edge_neighbours(mesh, topology, f, out);
+            edge_neighbours(mesh, topology, f, scratch);
+            scratch.iter().for_each(|&g| visit(g));
         } else {
-            out.clear();
-            out.extend(self.three[f as usize].iter().filter(|&&g| g != NONE));
+            (self.three[f as usize].iter())
+                .filter(|&&g| g != NONE)
+                .for_each(|&g| visit(g));
         }
     }
 }
