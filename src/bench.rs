@@ -11,10 +11,23 @@ use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
 
-/// The same mesh with its vertices renumbered by a seeded permutation: this removes the
-/// memory locality that marching-cubes output has and shows the worst case.
+/// The same mesh with its vertices renumbered and its faces listed in an order given by seeded
+/// permutations: a file in no order at all, without the memory locality marching-cubes output
+/// has; the worst case.
 pub fn shuffled(mesh: &Mesh, seed: u64) -> Mesh {
-    renumbered(mesh, &permutation(mesh.n_vertices(), seed))
+    let renamed = renumbered(mesh, &permutation(mesh.n_vertices(), seed));
+    relisted(
+        &renamed,
+        &permutation(mesh.n_triangles(), seed.wrapping_add(1)),
+    )
+}
+
+/// The mesh with its faces listed in another order: face i is the mesh's face `order[i]`
+/// (`order` a permutation of its faces).
+pub fn relisted(mesh: &Mesh, order: &[u32]) -> Mesh {
+    let tris = mesh.triangles();
+    let triangles = order.iter().map(|&f| tris[f as usize]).collect();
+    Mesh::from_checked_parts(mesh.positions().to_vec(), triangles)
 }
 
 /// A seeded random permutation of 0..n.
@@ -388,7 +401,11 @@ pub fn smooth(triangles: usize, iterations: usize, repeat: usize) -> SmoothBench
                 "shuffled" => permutation(mesh.n_vertices(), 7),
                 _ => (0..mesh.n_vertices() as u32).collect(),
             };
-            let renamed = renumbered(&mesh, &old);
+            let mut renamed = renumbered(&mesh, &old);
+            if numbering == "shuffled" {
+                // A file in no order: its faces listed at random too.
+                renamed = relisted(&renamed, &permutation(mesh.n_triangles(), 8));
+            }
             // As `smooth` and cohort runs work: a scattered file is renumbered once after
             // reading, and its result put back before writing.
             let working = crate::mesh::order::working_numbering(&renamed);
@@ -489,8 +506,8 @@ const FAR_OFFSET_MM: f32 = 15.0;
 
 /// Times context analysis on the `big` phantom of about `triangles` triangles, and exact
 /// distance queries for about as many points (face centroids moved 1.5 mm off the surface)
-/// against the same mesh as a reference; with `shuffle`, on a seeded permutation of its vertex
-/// numbering.
+/// against the same mesh as a reference; with `shuffle`, on the mesh [`shuffled`] (vertex
+/// numbering and face order permuted).
 pub fn context(triangles: usize, shuffle: bool, repeat: usize) -> ContextBench {
     use crate::analysis::{detect_caps, stack_axis, CapParams, StackAxisParams};
     use crate::spatial::TriangleBvh;

@@ -9,8 +9,8 @@ pub enum Args {
         /// Approximate number of triangles of the `big` phantom (and of query points).
         #[arg(long, default_value_t = 1_000_000)]
         triangles: usize,
-        /// Permute vertex numbering (worst-case memory locality; faces and queries keep their
-        /// order).
+        /// Permute vertex numbering and face order (worst-case memory locality; the queries
+        /// follow the faces).
         #[arg(long)]
         shuffle: bool,
         #[arg(long, default_value_t = 3)]
@@ -59,7 +59,7 @@ pub enum Args {
         /// Mesh to run on: the `big` phantom (marching-cubes blob) or a regular torus.
         #[arg(long, value_enum, default_value_t = MeshArg::Phantom)]
         mesh: MeshArg,
-        /// Permute vertex numbering (worst-case memory locality).
+        /// Permute vertex numbering and face order (worst-case memory locality).
         #[arg(long)]
         shuffle: bool,
         /// Runs per measurement; the best is reported.
@@ -95,7 +95,7 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
                 r.n_vertices,
                 r.n_triangles,
                 if r.shuffled {
-                    " (shuffled numbering)"
+                    " (shuffled numbering and face order)"
                 } else {
                     ""
                 },
@@ -229,7 +229,7 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
                 r.mesh,
                 r.n_vertices,
                 r.n_triangles,
-                if r.shuffled { " (shuffled numbering)" } else { "" },
+                if r.shuffled { " (shuffled numbering and face order)" } else { "" },
                 r.file_bytes as f64 / 1e6,
                 r.threads
             );

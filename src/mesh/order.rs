@@ -9,8 +9,10 @@
 //!   numbering [`is_scattered`]; gathering and scattering through it is exact, so a kernel gives
 //!   bit-identical results in either numbering.
 //! - [`working_numbering`]: the same from a mesh's faces alone, applied once after reading by
-//!   `smooth` and cohort runs so that every pass (topology, context, smoothing) runs in it;
-//!   [`Renumbering::restore`] puts the result back in the file's numbering for writing.
+//!   `smooth` and cohort runs so that every pass (topology, context, smoothing) runs in it,
+//!   and faces listed in a scattered order sorted by their smallest vertex;
+//!   [`Renumbering::restore`] puts the result back in the file's numbering and face order for
+//!   writing.
 
 use super::Mesh;
 use rayon::prelude::*;
@@ -166,11 +168,15 @@ fn mean_positive_length(segments: impl Iterator<Item = ([f32; 3], [f32; 3])>) ->
     }
 }
 
-/// A renumbering of vertices: vertex `old[i]` gets number i, and vertex v gets `new[v]`.
+/// A renumbering of vertices: vertex `old[i]` gets number i, and vertex v gets `new[v]`; and
+/// perhaps of faces: working face i is the file's face `faces[i]`.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Renumbering {
     pub old: Vec<u32>,
     pub new: Vec<u32>,
+    /// The file's index of each working face, when the faces are listed in another order
+    /// ([`working_numbering`] of a file whose face order is scattered); `None` keeps them.
+    pub faces: Option<Vec<u32>>,
 }
 
 /// Scanline order: vertices sorted by the row of cells they lie in (z, then y) and then along
@@ -214,14 +220,92 @@ fn sampled_mean_face_edge(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> f64
     )
 }
 
-/// The numbering a mesh is best worked in: `None` when its own numbering is local enough (as
-/// marching cubes and flying edges write it), else the [`scanline`] order, with cells of the
-/// mean edge length sampled from the faces. Reading it from the faces makes it the same
-/// whichever command asks, before any topology is built.
+/// The numbering a mesh is best worked in: `None` when its own numbering and face order are
+/// local enough (as marching cubes and flying edges write them). Otherwise the vertices of a
+/// scattered numbering take the [`scanline`] order, with cells of the mean edge length sampled
+/// from the faces, and faces listed in a scattered order (a file whose faces were shuffled or
+/// hash-ordered) are sorted by their smallest working vertex ([`faces_in_vertex_order`]), so
+/// that a face's neighbours and a vertex's faces sit close in memory. Reading it from the faces
+/// makes it the same whichever command asks, before any topology is built.
 pub fn working_numbering(mesh: &Mesh) -> Option<Renumbering> {
     let (positions, triangles) = (mesh.positions(), mesh.triangles());
-    faces_scattered(triangles)
-        .then(|| scanline_in_cells(positions, sampled_mean_face_edge(positions, triangles)))
+    let vertices = faces_scattered(triangles)
+        .then(|| scanline_in_cells(positions, sampled_mean_face_edge(positions, triangles)));
+    let new = vertices.as_ref().map(|r| r.new.as_slice());
+    if !face_order_scattered(triangles, new) {
+        return vertices;
+    }
+    let faces = faces_in_vertex_order(triangles, new, positions.len());
+    let mut r =
+        vertices.unwrap_or_else(|| Renumbering::from_old((0..positions.len() as u32).collect()));
+    r.faces = Some(faces);
+    Some(r)
+}
+
+/// Smallest vertex of a face, in the numbering `new` (the face's own when `None`).
+fn smallest_vertex(t: [u32; 3], new: Option<&[u32]>) -> u32 {
+    let v = |i: usize| new.map_or(t[i], |n| n[t[i] as usize]);
+    v(0).min(v(1)).min(v(2))
+}
+
+/// Whether more than a tenth of every 16th face and the face after it have smallest vertices
+/// (in the numbering `new`) further than 32,768 apart: faces listed in no spatial order, so that
+/// walking a vertex's faces or a face's neighbours waits on memory. Marching-cubes and
+/// flying-edges output lists neighbouring faces one after another.
+pub fn face_order_scattered(triangles: &[[u32; 3]], new: Option<&[u32]>) -> bool {
+    let pairs = triangles.len().saturating_sub(1).div_ceil(SAMPLE);
+    let far = (0..pairs)
+        .into_par_iter()
+        .with_min_len(1024)
+        .filter(|&k| {
+            let f = k * SAMPLE;
+            let (a, b) = (triangles[f], triangles[f + 1]);
+            smallest_vertex(a, new).abs_diff(smallest_vertex(b, new)) > NEAR
+        })
+        .count();
+    far * 10 > pairs
+}
+
+/// The file index of each face in the working order: faces by their smallest vertex in the
+/// numbering `new` (a counting sort over `n_vertices`), faces with the same smallest vertex by
+/// the other two as they follow it around the face, so that the order depends on the numbering
+/// only, not on the order the file listed the faces in (but for faces with the same three
+/// vertices the same way round, which keep file order).
+pub fn faces_in_vertex_order(
+    triangles: &[[u32; 3]],
+    new: Option<&[u32]>,
+    n_vertices: usize,
+) -> Vec<u32> {
+    // The face with its smallest vertex first, the turn kept.
+    let rotated = |t: [u32; 3]| {
+        let t = t.map(|v| new.map_or(v, |n| n[v as usize]));
+        let first = (0..3).min_by_key(|&i| t[i]).unwrap_or(0);
+        [t[first], t[(first + 1) % 3], t[(first + 2) % 3]]
+    };
+    let keys: Vec<[u32; 3]> = triangles.par_iter().map(|&t| rotated(t)).collect();
+    let mut next = vec![0u32; n_vertices + 1];
+    for k in &keys {
+        next[k[0] as usize + 1] += 1;
+    }
+    for v in 0..n_vertices {
+        next[v + 1] += next[v];
+    }
+    let mut order = vec![0u32; keys.len()];
+    for (f, k) in keys.iter().enumerate() {
+        let slot = &mut next[k[0] as usize];
+        order[*slot as usize] = f as u32;
+        *slot += 1;
+    }
+    // Now next[v] ends vertex v's faces, which begin where vertex v - 1's end.
+    let mut start = 0;
+    for &end in &next[..n_vertices] {
+        let bucket = &mut order[start..end as usize];
+        if bucket.len() > 1 {
+            bucket.sort_unstable_by_key(|&f| (keys[f as usize], f));
+        }
+        start = end as usize;
+    }
+    order
 }
 
 /// [`scanline`] with rows of cells `cell` mm high.
@@ -262,27 +346,46 @@ impl Renumbering {
         for (i, &v) in old.iter().enumerate() {
             new[v as usize] = i as u32;
         }
-        Renumbering { old, new }
+        Renumbering {
+            old,
+            new,
+            faces: None,
+        }
     }
 
-    /// The mesh in the new numbering: the same surface, its faces in the same order.
+    /// The mesh in the new numbering: the same surface, its faces in the same order (or in
+    /// the order `faces` gives).
     pub fn mesh(&self, mesh: &Mesh) -> Mesh {
-        let triangles = mesh
-            .triangles()
-            .par_iter()
-            .map(|t| t.map(|v| self.new[v as usize]))
-            .collect();
+        let tris = mesh.triangles();
+        let renamed = |t: &[u32; 3]| t.map(|v| self.new[v as usize]);
+        let triangles = match &self.faces {
+            Some(faces) => faces
+                .par_iter()
+                .map(|&f| renamed(&tris[f as usize]))
+                .collect(),
+            None => tris.par_iter().map(renamed).collect(),
+        };
         Mesh::from_checked_parts(self.gather(mesh.positions()), triangles)
     }
 
     /// A mesh of the new numbering (a [`Renumbering::mesh`], its positions perhaps changed)
-    /// back in the old one: the file's numbering and faces, to the bit.
+    /// back in the old one: the file's numbering and faces in the file's order, to the bit.
     pub fn restore(&self, mesh: &Mesh) -> Mesh {
-        let triangles = mesh
-            .triangles()
-            .par_iter()
-            .map(|t| t.map(|i| self.old[i as usize]))
-            .collect();
+        let tris = mesh.triangles();
+        let renamed = |t: &[u32; 3]| t.map(|i| self.old[i as usize]);
+        let triangles = match &self.faces {
+            Some(faces) => {
+                let mut working = vec![0u32; faces.len()];
+                for (i, &f) in faces.iter().enumerate() {
+                    working[f as usize] = i as u32;
+                }
+                working
+                    .par_iter()
+                    .map(|&i| renamed(&tris[i as usize]))
+                    .collect()
+            }
+            None => tris.par_iter().map(renamed).collect(),
+        };
         Mesh::from_checked_parts(self.scatter(mesh.positions()), triangles)
     }
 

@@ -9,7 +9,9 @@ use super::{
 use crate::analysis::{
     stack_axis_with, CapCandidates, CapDetection, CapParams, CapSearch, StackAxis, StackAxisParams,
 };
-use crate::mesh::order::{is_scattered, scanline, Renumbering};
+use crate::mesh::order::{
+    face_order_scattered, faces_in_vertex_order, is_scattered, scanline, Renumbering,
+};
 use crate::mesh::{Mesh, Topology};
 use crate::metrics::normal_curvature::TurnLimits;
 use crate::spatial::TriangleBvh;
@@ -98,8 +100,8 @@ pub struct Context {
 }
 
 impl Context {
-    /// The context of a mesh renumbered by `order`, in the mesh's own numbering (the faces
-    /// kept their order).
+    /// The context of a mesh renumbered by `order`, in the mesh's own numbering of vertices
+    /// and faces.
     fn numbered_back(mut self, order: &Renumbering) -> Context {
         self.average_normal_curvature_deg = None;
         self.weights = self.weights.scattered(order);
@@ -111,6 +113,11 @@ impl Context {
         for cap in &mut self.caps.caps {
             for v in &mut cap.vertices {
                 *v = order.old[*v as usize];
+            }
+            if let Some(faces) = &order.faces {
+                for f in &mut cap.faces {
+                    *f = faces[*f as usize];
+                }
             }
         }
         if let Some(d) = &mut self.reference_distance_mm {
@@ -154,9 +161,10 @@ impl Context {
 
 /// Computes context-aware weights for a mesh; `references` are the structures whose distance
 /// must be preserved (empty for none). A mesh whose numbering is scattered (see
-/// [`is_scattered`]) is analysed in scanline order, about twice as fast, and the results are
-/// put back in its own numbering; they then match an analysis in its own order to float
-/// rounding (sums over neighbours run in another order), not bit for bit.
+/// [`is_scattered`]) is analysed in scanline order, about twice as fast, and one whose faces
+/// are listed in a scattered order ([`face_order_scattered`]) with its faces sorted by vertex;
+/// the results are put back in its own numbering. They then match an analysis in its own order
+/// to float rounding (sums over neighbours run in another order), not bit for bit.
 pub fn context_weights(
     mesh: &Mesh,
     topology: &Topology,
@@ -164,10 +172,17 @@ pub fn context_weights(
     references: &[&TriangleBvh],
 ) -> Context {
     let (offsets, neighbors) = topology.neighbor_csr();
-    if !is_scattered(offsets, neighbors) {
+    let vertices =
+        is_scattered(offsets, neighbors).then(|| scanline(mesh.positions(), offsets, neighbors));
+    let new = vertices.as_ref().map(|r| r.new.as_slice());
+    let faces = face_order_scattered(mesh.triangles(), new)
+        .then(|| faces_in_vertex_order(mesh.triangles(), new, mesh.n_vertices()));
+    if vertices.is_none() && faces.is_none() {
         return context_in_mesh_order(mesh, topology, params, references);
     }
-    let order = scanline(mesh.positions(), offsets, neighbors);
+    let n = mesh.n_vertices() as u32;
+    let mut order = vertices.unwrap_or_else(|| Renumbering::from_old((0..n).collect()));
+    order.faces = faces;
     let local = order.mesh(mesh);
     let local_topology = Topology::build(&local);
     context_in_mesh_order(&local, &local_topology, params, references).numbered_back(&order)

@@ -114,10 +114,14 @@ fn working_numbering_is_read_from_the_faces_and_restores_to_the_bit() {
             is_scattered(offsets, neighbors)
         );
         let r = working_numbering(&mesh).expect("a shuffled torus is scattered");
+        assert!(face_order_scattered(mesh.triangles(), Some(&r.new)));
         let worked = r.mesh(&mesh);
         assert!(!faces_scattered(worked.triangles()));
-        // Same faces in the same order, each vertex where it was.
-        for (t, u) in mesh.triangles().iter().zip(worked.triangles()) {
+        assert!(!face_order_scattered(worked.triangles(), None));
+        // Working face i is the file's face faces[i], each vertex where it was.
+        let faces = r.faces.as_ref().expect("shuffled faces are sorted");
+        for (&f, u) in faces.iter().zip(worked.triangles()) {
+            let t = mesh.triangles()[f as usize];
             for k in 0..3 {
                 assert_eq!(r.old[u[k] as usize], t[k]);
                 assert_eq!(
@@ -132,4 +136,49 @@ fn working_numbering_is_read_from_the_faces_and_restores_to_the_bit() {
     }
     // Degenerate inputs do not panic.
     assert!(working_numbering(&Mesh::default()).is_none());
+}
+
+/// A file whose vertices are numbered locally but whose faces are listed in a random order
+/// keeps its numbering and has its faces sorted by their smallest vertex, each face turning
+/// the way it did; the working order does not depend on the order the faces came in, and
+/// restoring gives the file's faces back to the bit.
+#[test]
+fn shuffled_faces_are_sorted_by_vertex_whatever_their_order() {
+    // 180 K vertices: two random faces' smallest vertices are mostly over 32,768 apart.
+    let torus = destair::bench::torus(600, 300);
+    let listed = |seed| {
+        destair::bench::relisted(
+            &torus,
+            &destair::bench::permutation(torus.n_triangles(), seed),
+        )
+    };
+    let mut worked_once: Option<Mesh> = None;
+    for seed in [4, 5] {
+        let mesh = listed(seed);
+        assert!(!faces_scattered(mesh.triangles()));
+        assert!(face_order_scattered(mesh.triangles(), None));
+        let r = working_numbering(&mesh).expect("scattered faces");
+        assert!(r.old.iter().enumerate().all(|(i, &v)| v == i as u32));
+        let worked = r.mesh(&mesh);
+        assert_eq!(worked.positions(), mesh.positions());
+        let smallest: Vec<u32> = (worked.triangles().iter())
+            .map(|t| *t.iter().min().unwrap())
+            .collect();
+        assert!(smallest.windows(2).all(|w| w[0] <= w[1]));
+        // The same faces, the same way round: each a rotation of the file's.
+        let faces = r.faces.as_ref().unwrap();
+        for (&f, u) in faces.iter().zip(worked.triangles()) {
+            let t = mesh.triangles()[f as usize];
+            assert!((0..3).any(|k| [t[k], t[(k + 1) % 3], t[(k + 2) % 3]] == *u));
+        }
+        if let Some(first) = &worked_once {
+            assert!(first == &worked, "the working order depends on the file's");
+        }
+        let back = r.restore(&worked);
+        assert!(back.triangles() == mesh.triangles());
+        worked_once = Some(worked);
+    }
+    // The torus as generated lists neighbouring faces together.
+    assert!(!face_order_scattered(torus.triangles(), None));
+    assert!(working_numbering(&torus).is_none());
 }

@@ -52,7 +52,11 @@ fn row_means_have_the_bits_of_the_plain_loop() {
     for (i, &v) in old.iter().enumerate() {
         new[v as usize] = i as u32;
     }
-    let shuffle = Renumbering { old, new };
+    let shuffle = Renumbering {
+        old,
+        new,
+        faces: None,
+    };
     for r in [None, Some(&shuffle)] {
         let rows = NeighbourLists::new(&offsets, &neighbors, r);
         assert_eq!(rows.len(), n);
