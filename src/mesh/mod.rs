@@ -92,6 +92,23 @@ impl Mesh {
         }
     }
 
+    /// A mesh of checked positions and faces shared with another mesh (no copy of the faces).
+    pub(crate) fn from_shared_parts(
+        positions: Vec<[f32; 3]>,
+        triangles: Arc<Vec<[u32; 3]>>,
+    ) -> Self {
+        debug_assert!(Mesh::new(positions.clone(), triangles.to_vec()).is_ok());
+        Self {
+            positions,
+            triangles,
+        }
+    }
+
+    /// The faces, shared (no copy), for a mesh built from the same faces later.
+    pub(crate) fn shared_triangles(&self) -> Arc<Vec<[u32; 3]>> {
+        Arc::clone(&self.triangles)
+    }
+
     /// The same faces with other positions (one per vertex, finite, as the caller has made
     /// sure): the faces are shared, not copied.
     pub(crate) fn with_checked_positions(&self, positions: Vec<[f32; 3]>) -> Mesh {

@@ -10,12 +10,13 @@
 //!   bit-identical results in either numbering.
 //! - [`working_numbering`]: the same from a mesh's faces alone, applied once after reading by
 //!   `smooth` and cohort runs so that every pass (topology, context, smoothing) runs in it,
-//!   and faces listed in a scattered order sorted by their smallest vertex;
+//!   and faces listed in a scattered order sorted by their smallest vertex ([`FaceOrder`]);
 //!   [`Renumbering::restore`] puts the result back in the file's numbering and face order for
 //!   writing.
 
 use super::Mesh;
 use rayon::prelude::*;
+use std::sync::Arc;
 
 /// Bits per axis of the Morton code: 21 x 3 = 63 bits, cells of 1/2 M of the box's extent.
 const BITS: u32 = 21;
@@ -169,14 +170,14 @@ fn mean_positive_length(segments: impl Iterator<Item = ([f32; 3], [f32; 3])>) ->
 }
 
 /// A renumbering of vertices: vertex `old[i]` gets number i, and vertex v gets `new[v]`; and
-/// perhaps of faces: working face i is the file's face `faces[i]`.
+/// perhaps of faces.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Renumbering {
     pub old: Vec<u32>,
     pub new: Vec<u32>,
-    /// The file's index of each working face, when the faces are listed in another order
-    /// ([`working_numbering`] of a file whose face order is scattered); `None` keeps them.
-    pub faces: Option<Vec<u32>>,
+    /// The faces in working order, when the file lists them in a scattered order
+    /// ([`working_numbering`]); `None` keeps the file's order.
+    pub faces: Option<FaceOrder>,
 }
 
 /// Scanline order: vertices sorted by the row of cells they lie in (z, then y) and then along
@@ -224,9 +225,9 @@ fn sampled_mean_face_edge(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> f64
 /// local enough (as marching cubes and flying edges write them). Otherwise the vertices of a
 /// scattered numbering take the [`scanline`] order, with cells of the mean edge length sampled
 /// from the faces, and faces listed in a scattered order (a file whose faces were shuffled or
-/// hash-ordered) are sorted by their smallest working vertex ([`faces_in_vertex_order`]), so
-/// that a face's neighbours and a vertex's faces sit close in memory. Reading it from the faces
-/// makes it the same whichever command asks, before any topology is built.
+/// hash-ordered) are sorted by their smallest working vertex ([`FaceOrder`]), so that a face's
+/// neighbours and a vertex's faces sit close in memory. Reading it from the faces makes it the
+/// same whichever command asks, before any topology is built.
 pub fn working_numbering(mesh: &Mesh) -> Option<Renumbering> {
     let (positions, triangles) = (mesh.positions(), mesh.triangles());
     let vertices = faces_scattered(triangles)
@@ -235,9 +236,9 @@ pub fn working_numbering(mesh: &Mesh) -> Option<Renumbering> {
     if !face_order_scattered(triangles, new) {
         return vertices;
     }
-    let faces = faces_in_vertex_order(triangles, new, positions.len());
-    let mut r =
-        vertices.unwrap_or_else(|| Renumbering::from_old((0..positions.len() as u32).collect()));
+    let faces = FaceOrder::of(mesh, new);
+    let n = positions.len() as u32;
+    let mut r = vertices.unwrap_or_else(|| Renumbering::from_old((0..n).collect()));
     r.faces = Some(faces);
     Some(r)
 }
@@ -266,46 +267,73 @@ pub fn face_order_scattered(triangles: &[[u32; 3]], new: Option<&[u32]>) -> bool
     far * 10 > pairs
 }
 
-/// The file index of each face in the working order: faces by their smallest vertex in the
-/// numbering `new` (a counting sort over `n_vertices`), faces with the same smallest vertex by
-/// the other two as they follow it around the face, so that the order depends on the numbering
-/// only, not on the order the file listed the faces in (but for faces with the same three
-/// vertices the same way round, which keep file order).
-pub fn faces_in_vertex_order(
-    triangles: &[[u32; 3]],
-    new: Option<&[u32]>,
-    n_vertices: usize,
-) -> Vec<u32> {
-    // The face with its smallest vertex first, the turn kept.
-    let rotated = |t: [u32; 3]| {
-        let t = t.map(|v| new.map_or(v, |n| n[v as usize]));
-        let first = (0..3).min_by_key(|&i| t[i]).unwrap_or(0);
-        [t[first], t[(first + 1) % 3], t[(first + 2) % 3]]
-    };
-    let keys: Vec<[u32; 3]> = triangles.par_iter().map(|&t| rotated(t)).collect();
-    let mut next = vec![0u32; n_vertices + 1];
-    for k in &keys {
-        next[k[0] as usize + 1] += 1;
-    }
-    for v in 0..n_vertices {
-        next[v + 1] += next[v];
-    }
-    let mut order = vec![0u32; keys.len()];
-    for (f, k) in keys.iter().enumerate() {
-        let slot = &mut next[k[0] as usize];
-        order[*slot as usize] = f as u32;
-        *slot += 1;
-    }
-    // Now next[v] ends vertex v's faces, which begin where vertex v - 1's end.
-    let mut start = 0;
-    for &end in &next[..n_vertices] {
-        let bucket = &mut order[start..end as usize];
-        if bucket.len() > 1 {
-            bucket.sort_unstable_by_key(|&f| (keys[f as usize], f));
+/// Faces listed in working order: by their smallest vertex in the working numbering, faces with
+/// the same smallest vertex by the other two as they follow it around the face. The order and
+/// the working faces depend on the numbering only, not on the order the file listed its faces
+/// in nor on which corner each face starts at (but for faces with the same three vertices the
+/// same way round, which keep file order).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct FaceOrder {
+    /// The file's index of each working face.
+    pub file_index: Vec<u32>,
+    /// The working faces: the file's, renumbered and turned to start at their smallest vertex
+    /// (the same faces, the same way round), shared with the working mesh.
+    working: Arc<Vec<[u32; 3]>>,
+    /// The file's faces, shared with the file's mesh, for writing back.
+    file: Arc<Vec<[u32; 3]>>,
+}
+
+impl FaceOrder {
+    /// The working order of `mesh`'s faces once its vertices take the numbering `new` (its own
+    /// when `None`): a counting sort by smallest vertex, then each vertex's few faces sorted in
+    /// place, side by side.
+    pub fn of(mesh: &Mesh, new: Option<&[u32]>) -> FaceOrder {
+        let n_vertices = mesh.n_vertices();
+        // The face renumbered, its smallest vertex first, the turn kept.
+        let turned = |t: [u32; 3]| {
+            let t = t.map(|v| new.map_or(v, |n| n[v as usize]));
+            let first = (0..3).min_by_key(|&i| t[i]).unwrap_or(0);
+            [t[first], t[(first + 1) % 3], t[(first + 2) % 3]]
+        };
+        let keys: Vec<[u32; 3]> = mesh.triangles().par_iter().map(|&t| turned(t)).collect();
+        let mut next = vec![0u32; n_vertices + 1];
+        for k in &keys {
+            next[k[0] as usize + 1] += 1;
         }
-        start = end as usize;
+        for v in 0..n_vertices {
+            next[v + 1] += next[v];
+        }
+        let mut order = vec![0u32; keys.len()];
+        for (f, k) in keys.iter().enumerate() {
+            let slot = &mut next[k[0] as usize];
+            order[*slot as usize] = f as u32;
+            *slot += 1;
+        }
+        drop(next);
+        // (working face, file index), by smallest vertex; then by the rest, vertex by vertex.
+        let mut entries: Vec<[u32; 4]> = (order.par_iter())
+            .map(|&f| {
+                let k = keys[f as usize];
+                [k[0], k[1], k[2], f]
+            })
+            .collect();
+        drop((keys, order));
+        (entries.par_chunk_by_mut(|a, b| a[0] == b[0]))
+            .filter(|faces| faces.len() > 1)
+            .for_each(|faces| faces.sort_unstable());
+        let working = Arc::new(entries.par_iter().map(|e| [e[0], e[1], e[2]]).collect());
+        let file_index = entries.par_iter().map(|e| e[3]).collect();
+        FaceOrder {
+            working,
+            file_index,
+            file: mesh.shared_triangles(),
+        }
     }
-    order
+
+    /// The working faces.
+    pub fn working(&self) -> &[[u32; 3]] {
+        &self.working
+    }
 }
 
 /// [`scanline`] with rows of cells `cell` mm high.
@@ -353,40 +381,35 @@ impl Renumbering {
         }
     }
 
-    /// The mesh in the new numbering: the same surface, its faces in the same order (or in
-    /// the order `faces` gives).
+    /// The mesh in the new numbering: the same surface, its faces in the same order (or the
+    /// working faces of `faces`, when `mesh` is the mesh they were found for).
     pub fn mesh(&self, mesh: &Mesh) -> Mesh {
-        let tris = mesh.triangles();
-        let renamed = |t: &[u32; 3]| t.map(|v| self.new[v as usize]);
-        let triangles = match &self.faces {
-            Some(faces) => faces
-                .par_iter()
-                .map(|&f| renamed(&tris[f as usize]))
-                .collect(),
-            None => tris.par_iter().map(renamed).collect(),
-        };
-        Mesh::from_checked_parts(self.gather(mesh.positions()), triangles)
+        let positions = self.gather(mesh.positions());
+        match &self.faces {
+            Some(faces) => {
+                debug_assert!(faces.file.as_slice() == mesh.triangles());
+                Mesh::from_shared_parts(positions, Arc::clone(&faces.working))
+            }
+            None => {
+                let renamed = |t: &[u32; 3]| t.map(|v| self.new[v as usize]);
+                let triangles = mesh.triangles().par_iter().map(renamed).collect();
+                Mesh::from_checked_parts(positions, triangles)
+            }
+        }
     }
 
     /// A mesh of the new numbering (a [`Renumbering::mesh`], its positions perhaps changed)
     /// back in the old one: the file's numbering and faces in the file's order, to the bit.
     pub fn restore(&self, mesh: &Mesh) -> Mesh {
-        let tris = mesh.triangles();
-        let renamed = |t: &[u32; 3]| t.map(|i| self.old[i as usize]);
-        let triangles = match &self.faces {
-            Some(faces) => {
-                let mut working = vec![0u32; faces.len()];
-                for (i, &f) in faces.iter().enumerate() {
-                    working[f as usize] = i as u32;
-                }
-                working
-                    .par_iter()
-                    .map(|&i| renamed(&tris[i as usize]))
-                    .collect()
+        let positions = self.scatter(mesh.positions());
+        match &self.faces {
+            Some(faces) => Mesh::from_shared_parts(positions, Arc::clone(&faces.file)),
+            None => {
+                let renamed = |t: &[u32; 3]| t.map(|i| self.old[i as usize]);
+                let triangles = mesh.triangles().par_iter().map(renamed).collect();
+                Mesh::from_checked_parts(positions, triangles)
             }
-            None => tris.par_iter().map(renamed).collect(),
-        };
-        Mesh::from_checked_parts(self.scatter(mesh.positions()), triangles)
+        }
     }
 
     /// Per-vertex values in the new numbering.

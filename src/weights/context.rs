@@ -9,9 +9,7 @@ use super::{
 use crate::analysis::{
     stack_axis_with, CapCandidates, CapDetection, CapParams, CapSearch, StackAxis, StackAxisParams,
 };
-use crate::mesh::order::{
-    face_order_scattered, faces_in_vertex_order, is_scattered, scanline, Renumbering,
-};
+use crate::mesh::order::{face_order_scattered, is_scattered, scanline, FaceOrder, Renumbering};
 use crate::mesh::{Mesh, Topology};
 use crate::metrics::normal_curvature::TurnLimits;
 use crate::spatial::TriangleBvh;
@@ -116,7 +114,7 @@ impl Context {
             }
             if let Some(faces) = &order.faces {
                 for f in &mut cap.faces {
-                    *f = faces[*f as usize];
+                    *f = faces.file_index[*f as usize];
                 }
             }
         }
@@ -175,8 +173,7 @@ pub fn context_weights(
     let vertices =
         is_scattered(offsets, neighbors).then(|| scanline(mesh.positions(), offsets, neighbors));
     let new = vertices.as_ref().map(|r| r.new.as_slice());
-    let faces = face_order_scattered(mesh.triangles(), new)
-        .then(|| faces_in_vertex_order(mesh.triangles(), new, mesh.n_vertices()));
+    let faces = face_order_scattered(mesh.triangles(), new).then(|| FaceOrder::of(mesh, new));
     if vertices.is_none() && faces.is_none() {
         return context_in_mesh_order(mesh, topology, params, references);
     }
