@@ -133,7 +133,17 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         },
         ..Default::default()
     };
-    let loaded = read_input(&mesh, &options)?;
+    let mut loaded = read_input(&mesh, &options)?;
+    // A scattered file is inspected in its working order, as `smooth` works it (the report's
+    // figures are sums and counts; --export goes back to the file's numbering), but for
+    // --patches, whose patch files are new surfaces in the file's order.
+    let renumbering = match patches || patch_files.is_some() {
+        true => None,
+        false => destair::mesh::order::working_numbering(&loaded.mesh),
+    };
+    if let Some(r) = &renumbering {
+        loaded.mesh = r.mesh(&loaded.mesh);
+    }
     let topology = destair::Topology::build(&loaded.mesh);
     let trees = if context || export.is_some() {
         Some(ctx.reference_trees()?)
@@ -217,9 +227,18 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         }
     }
     if let (Some(path), Some(a)) = (export, &analysis) {
-        let arrays = a.vertex_arrays(loaded.mesh.n_vertices());
+        let mut arrays = a.vertex_arrays(loaded.mesh.n_vertices());
+        let written = match &renumbering {
+            Some(r) => {
+                for (_, values) in &mut arrays {
+                    *values = r.scatter(values);
+                }
+                std::borrow::Cow::Owned(r.restore(&loaded.mesh))
+            }
+            None => std::borrow::Cow::Borrowed(&loaded.mesh),
+        };
         let props: Vec<(&str, &[f32])> = arrays.iter().map(|(n, v)| (*n, v.as_slice())).collect();
-        destair::io::write_annotated(&path, &loaded.mesh, &loaded.meta, &props, "weight")?;
+        destair::io::write_annotated(&path, &written, &loaded.meta, &props, "weight")?;
     }
     Ok(())
 }

@@ -825,6 +825,50 @@ fn a_scattered_numbering_is_worked_in_scanline_order_and_written_back() {
     }
     assert!(largest < 1e-4, "weighted: {largest} mm");
     assert!(weighted.positions() != done.positions());
+    // `inspect` works the scattered file in its working order too: the ordered file's report
+    // (sums to rounding), and an export whose arrays belong to the file's vertices.
+    let inspect = |from: &std::path::Path, export: &str| {
+        let path = root.join(export);
+        let out = destair(&[
+            "inspect",
+            from.to_str().unwrap(),
+            "--context",
+            "--json",
+            "--export",
+            path.to_str().unwrap(),
+        ]);
+        assert_ok(&out);
+        let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        (json, read(&path))
+    };
+    let ((a, exported_a), (b, exported_b)) = (
+        inspect(&plain_path, "plain_export.ply"),
+        inspect(&input, "shuffled_export.ply"),
+    );
+    for key in ["n_vertices", "n_triangles", "n_edges", "n_components"] {
+        assert_eq!(a[key], b[key], "{key}");
+    }
+    assert_eq!(a["context"]["caps"], b["context"]["caps"]);
+    for key in ["area_mm2", "volume_mm3", "average_normal_curvature_deg"] {
+        let (x, y) = (a[key].as_f64().unwrap(), b[key].as_f64().unwrap());
+        assert!((x - y).abs() <= 1e-9 * x.abs(), "{key}: {x} against {y}");
+    }
+    assert!(exported_b.mesh.triangles() == shuffled.triangles());
+    for (p, q) in exported_a
+        .vertex_properties
+        .iter()
+        .zip(&exported_b.vertex_properties)
+    {
+        assert_eq!(p.name, q.name);
+        for (i, &o) in old.iter().enumerate() {
+            let (x, y) = (q.values[i], p.values[o as usize]);
+            assert!(
+                (x - y).abs() <= 1e-4,
+                "{} of vertex {i}: {x} against {y}",
+                p.name
+            );
+        }
+    }
 }
 
 /// `compare` measures a scattered pair (a shuffled mesh and its moved copy, numbered alike) in
