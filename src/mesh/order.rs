@@ -170,7 +170,9 @@ fn mean_positive_length(segments: impl Iterator<Item = ([f32; 3], [f32; 3])>) ->
 }
 
 /// A renumbering of vertices: vertex `old[i]` gets number i, and vertex v gets `new[v]`; and
-/// perhaps of faces.
+/// perhaps of faces. It belongs to the mesh it was made for and to copies of it with the same
+/// faces (a smoothed copy): [`Renumbering::mesh`] then takes the working faces it holds, and
+/// [`Renumbering::restore`] gives back the file's.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Renumbering {
     pub old: Vec<u32>,
