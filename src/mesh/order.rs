@@ -234,12 +234,19 @@ pub fn working_numbering(mesh: &Mesh) -> Option<Renumbering> {
     let (positions, triangles) = (mesh.positions(), mesh.triangles());
     let vertices = faces_scattered(triangles)
         .then(|| scanline_in_cells(positions, sampled_mean_face_edge(positions, triangles)));
+    with_working_faces(mesh, vertices)
+}
+
+/// `vertices` (a renumbering of `mesh`'s vertices, or none) with `mesh`'s faces put in working
+/// order ([`FaceOrder`]) when they are listed in a scattered order ([`face_order_scattered`]);
+/// `None` when neither needs it.
+pub fn with_working_faces(mesh: &Mesh, vertices: Option<Renumbering>) -> Option<Renumbering> {
     let new = vertices.as_ref().map(|r| r.new.as_slice());
-    if !face_order_scattered(triangles, new) {
+    if !face_order_scattered(mesh.triangles(), new) {
         return vertices;
     }
     let faces = FaceOrder::of(mesh, new);
-    let n = positions.len() as u32;
+    let n = mesh.n_vertices() as u32;
     let mut r = vertices.unwrap_or_else(|| Renumbering::from_old((0..n).collect()));
     r.faces = Some(faces);
     Some(r)

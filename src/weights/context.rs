@@ -9,7 +9,7 @@ use super::{
 use crate::analysis::{
     stack_axis_with, CapCandidates, CapDetection, CapParams, CapSearch, StackAxis, StackAxisParams,
 };
-use crate::mesh::order::{face_order_scattered, is_scattered, scanline, FaceOrder, Renumbering};
+use crate::mesh::order::{is_scattered, scanline, with_working_faces, Renumbering};
 use crate::mesh::{Mesh, Topology};
 use crate::metrics::normal_curvature::TurnLimits;
 use crate::spatial::TriangleBvh;
@@ -160,7 +160,7 @@ impl Context {
 /// Computes context-aware weights for a mesh; `references` are the structures whose distance
 /// must be preserved (empty for none). A mesh whose numbering is scattered (see
 /// [`is_scattered`]) is analysed in scanline order, about twice as fast, and one whose faces
-/// are listed in a scattered order ([`face_order_scattered`]) with its faces sorted by vertex;
+/// are listed in a scattered order with its faces sorted by vertex ([`with_working_faces`]);
 /// the results are put back in its own numbering. They then match an analysis in its own order
 /// to float rounding (sums over neighbours run in another order), not bit for bit.
 pub fn context_weights(
@@ -172,14 +172,9 @@ pub fn context_weights(
     let (offsets, neighbors) = topology.neighbor_csr();
     let vertices =
         is_scattered(offsets, neighbors).then(|| scanline(mesh.positions(), offsets, neighbors));
-    let new = vertices.as_ref().map(|r| r.new.as_slice());
-    let faces = face_order_scattered(mesh.triangles(), new).then(|| FaceOrder::of(mesh, new));
-    if vertices.is_none() && faces.is_none() {
+    let Some(order) = with_working_faces(mesh, vertices) else {
         return context_in_mesh_order(mesh, topology, params, references);
-    }
-    let n = mesh.n_vertices() as u32;
-    let mut order = vertices.unwrap_or_else(|| Renumbering::from_old((0..n).collect()));
-    order.faces = faces;
+    };
     let local = order.mesh(mesh);
     let local_topology = Topology::build(&local);
     context_in_mesh_order(&local, &local_topology, params, references).numbered_back(&order)
