@@ -295,7 +295,8 @@ pub struct SmoothBench {
 #[derive(Debug, Serialize)]
 pub struct NumberingTiming {
     /// `phantom` (the marching cubes' own), `scanline` (rows of cells, as VTK's flying edges
-    /// writes them) or `shuffled` (a seeded permutation: a worst case).
+    /// writes them) or `shuffled` (seeded permutations of the vertices and of the faces: a
+    /// worst case).
     pub numbering: &'static str,
     /// Seconds for the iterations in the numbering the commands work in (best run).
     pub seconds: f64,
@@ -476,7 +477,7 @@ pub fn smooth(triangles: usize, iterations: usize, repeat: usize) -> SmoothBench
 pub struct ContextBench {
     pub n_vertices: usize,
     pub n_triangles: usize,
-    /// Whether the vertices were renumbered by a seeded permutation (faces keep their order).
+    /// Whether the mesh was [`shuffled`] first (vertex numbering and face order permuted).
     pub shuffled: bool,
     pub threads: usize,
     pub topology_s: f64,
