@@ -137,9 +137,10 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     // A scattered file is inspected in its working order, as `smooth` works it (the report's
     // figures are sums and counts; --export goes back to the file's numbering), but for
     // --patches, whose patch files are new surfaces in the file's order.
-    let renumbering = match patches || patch_files.is_some() {
-        true => None,
-        false => destair::mesh::order::working_numbering(&loaded.mesh),
+    let renumbering = if patches || patch_files.is_some() {
+        None
+    } else {
+        destair::mesh::order::working_numbering(&loaded.mesh)
     };
     if let Some(r) = &renumbering {
         loaded.mesh = r.mesh(&loaded.mesh);
