@@ -116,6 +116,8 @@ impl Context {
                 for f in &mut cap.faces {
                     *f = faces.file_index[*f as usize];
                 }
+                // Ascending, as detection lists them in the order it ran in.
+                cap.faces.sort_unstable();
             }
         }
         if let Some(d) = &mut self.reference_distance_mm {

@@ -808,6 +808,11 @@ fn caps_do_not_depend_on_the_order_of_the_faces() {
             &destair::bench::permutation(mesh.n_vertices(), seed),
         );
         let context = context_weights(&renamed, &Topology::build(&renamed), &params, &[]);
+        // Worked in another face order and numbered back, each cap still lists its faces
+        // ascending, as detection does.
+        for cap in &context.caps.caps {
+            assert!(cap.faces.is_sorted(), "seed {seed}: faces out of order");
+        }
         assert_eq!(
             caps_of(&context.caps, &order),
             plain,

@@ -88,6 +88,7 @@ impl Default for CapParams {
 /// One detected cap.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Cap {
+    /// The cap's faces, ascending.
     pub faces: Vec<u32>,
     pub vertices: Vec<u32>,
     /// Area-weighted unit normal (outward for outward-oriented meshes).
