@@ -107,10 +107,13 @@ pub fn leaf_disk(corners: &[[[f32; 3]; 3]]) -> ([f32; 3], [f32; 3], f32, f32) {
 /// Squared distances (mm^2) from `q` to the four lanes' disks, lower bounds of their leaves'
 /// distances as [`reach2`] needs them: a point of a leaf is at most `t` off the plane and at
 /// most `r` from the centre, so its distance is at least the plane gap less `t` and the
-/// in-plane gap less `r`. In f32, all four lanes at once; the gaps are shrunk by far more
-/// than rounding and the stored normal's error can move them (the plane gap's error is
-/// below 4e-7 of the offset's 1-norm, the in-plane gap's, a square root of a difference of
-/// squares, below 1.1e-3 of it; margins 2e-6 and 2e-3), the square by 1e-6.
+/// in-plane gap less `r`. In f32, all four lanes at once, every rounding covered: the offset
+/// `w = q - c` as computed is the exact offset of a point within 1.2e-7 |w|_1 of `q`; the
+/// plane gap `h` is off by less than 4.2e-7 |w|_1 (rounding and the stored normal's error);
+/// the in-plane gap's square `|w|^2 - h^2` by less than 1.6e-6 |w|^2, which shrinking
+/// `|w|^2` by 1e-5 more than covers, square root included; both gaps then lose 2e-6 |w|_1
+/// and the sum of squares 1e-6 of itself. The in-plane gap thus errs by about 5e-6 |w|^2 /
+/// rho, far less than the leaf's size even centimetres away.
 #[inline]
 pub fn disk_distances2(q: [f32; 3], d: &Disks) -> [f32; 4] {
     let mut h = [0.0f32; 4];
@@ -125,9 +128,9 @@ pub fn disk_distances2(q: [f32; 3], d: &Disks) -> [f32; 4] {
         }
     }
     std::array::from_fn(|k| {
-        let rho = max(ww[k] - h[k] * h[k], 0.0).sqrt();
+        let rho = max(ww[k] * (1.0 - 1e-5) - h[k] * h[k], 0.0).sqrt();
         let off_plane = max(h[k].abs() - d.t[k] - 2e-6 * w1[k], 0.0);
-        let in_plane = max(rho - d.r[k] - 2e-3 * w1[k], 0.0);
+        let in_plane = max(rho - d.r[k] - 2e-6 * w1[k], 0.0);
         (off_plane * off_plane + in_plane * in_plane) * (1.0 - 1e-6)
     })
 }

@@ -138,6 +138,78 @@ fn a_leaf_disk_bounds_its_triangles_from_below() {
     }
 }
 
+/// Where the disk bound is tightest, just past the rim of the disk's farthest corner and
+/// far off its plane (a reference a few cm away), it still stays below that corner's
+/// distance, for offsets from centimetres down to rounding.
+#[test]
+fn a_leaf_disk_bound_stays_below_the_corner_at_its_rim() {
+    let mut rng = fastrand::Rng::with_seed(9);
+    for round in 0..4000 {
+        let scale = [0.01f32, 0.3, 1.0, 300.0][round % 4];
+        let origin: [f32; 3] = std::array::from_fn(|_| (rng.f32() - 0.5) * 1000.0);
+        // Flat leaves (no thickness to spare) and curved ones.
+        let flat = [0.0f32, 1e-3, 0.3][(round / 4) % 3];
+        let n = 1 + rng.usize(0..LEAF);
+        let leaf: Vec<[[f32; 3]; 3]> = (0..n)
+            .map(|_| {
+                std::array::from_fn(|_| {
+                    std::array::from_fn(|a| {
+                        origin[a]
+                            + scale
+                                * if a == 2 {
+                                    flat * rng.f32()
+                                } else {
+                                    0.1 + rng.f32()
+                                }
+                    })
+                })
+            })
+            .collect();
+        let (c, nrm, r, t) = leaf_disk(&leaf);
+        let mut disks = Disks::default();
+        let k = round % 4;
+        for a in 0..3 {
+            disks.c[a][k] = c[a];
+            disks.n[a][k] = nrm[a];
+        }
+        (disks.r[k], disks.t[k]) = (r, t);
+        // The corner farthest from the centre, and its in-plane direction (f64).
+        let f = |p: [f32; 3]| p.map(f64::from);
+        let (cc, nn) = (f(c), f(nrm));
+        let far = leaf
+            .iter()
+            .flatten()
+            .copied()
+            .max_by(|a, b| {
+                let d = |p: [f32; 3]| (0..3).map(|i| (f(p)[i] - cc[i]).powi(2)).sum::<f64>();
+                d(*a).total_cmp(&d(*b))
+            })
+            .unwrap();
+        let w: Vec<f64> = (0..3).map(|i| f(far)[i] - cc[i]).collect();
+        let h: f64 = (0..3).map(|i| w[i] * nn[i]).sum();
+        let u: Vec<f64> = (0..3).map(|i| w[i] - h * nn[i]).collect();
+        let len = u.iter().map(|x| x * x).sum::<f64>().sqrt();
+        if len == 0.0 {
+            continue;
+        }
+        for _ in 0..20 {
+            let height = [0.0f64, 1.0, 12.0, 40.0, 150.0][rng.usize(0..5)] * (1.0 + rng.f64());
+            let past = [0.0f64, 1e-6, 1e-4, 1e-2, 1.0][rng.usize(0..5)] * f64::from(scale);
+            let q: [f32; 3] = std::array::from_fn(|i| {
+                (cc[i] + u[i] / len * (len + past) + nn[i] * (h + height)) as f32
+            });
+            let bound = f64::from(disk_distances2(q, &disks)[k]);
+            for tri in &leaf {
+                let d2 = point_triangle_distance2(q, *tri);
+                assert!(
+                    bound <= d2,
+                    "round {round}: bound {bound} > {d2}, {q:?}, {tri:?}"
+                );
+            }
+        }
+    }
+}
+
 /// Far above gently curved and flat surfaces, where the disks prune most leaves, and
 /// with exact ties (points straight above grid vertices of a flat grid), the tree still
 /// finds what testing every triangle finds.
