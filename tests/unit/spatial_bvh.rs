@@ -91,6 +91,31 @@ fn a_guessed_start_gives_the_same_distances() {
     }
 }
 
+/// The disks of `leaf` in lane `k`, with its centre and normal.
+fn disk_in_lane(leaf: &[[[f32; 3]; 3]], k: usize) -> (Disks, [f32; 3], [f32; 3]) {
+    let (c, nrm, r, t) = leaf_disk(leaf);
+    let mut disks = Disks::default();
+    for a in 0..3 {
+        disks.c[a][k] = c[a];
+        disks.n[a][k] = nrm[a];
+    }
+    (disks.r[k], disks.t[k]) = (r, t);
+    (disks, c, nrm)
+}
+
+/// Lane `k`'s disk bound from `q` is no more than the squared distance to any triangle of
+/// `leaf` (checked in f64).
+fn assert_bound_below(q: [f32; 3], disks: &Disks, k: usize, leaf: &[[[f32; 3]; 3]], round: usize) {
+    let bound = f64::from(disk_distances2(q, disks)[k]);
+    for tri in leaf {
+        let d2 = point_triangle_distance2(q, *tri);
+        assert!(
+            bound <= d2,
+            "round {round}: bound {bound} > {d2}, {q:?}, {tri:?}"
+        );
+    }
+}
+
 /// The disk bound never exceeds the distance to any triangle of its leaf (checked in f64
 /// against every triangle), for near-flat and folded leaves, tiny and huge offsets.
 #[test]
@@ -113,27 +138,14 @@ fn a_leaf_disk_bounds_its_triangles_from_below() {
                 })
             })
             .collect();
-        let (c, nrm, r, t) = leaf_disk(&leaf);
-        let mut disks = Disks::default();
         let k = round % 4;
-        for a in 0..3 {
-            disks.c[a][k] = c[a];
-            disks.n[a][k] = nrm[a];
-        }
-        (disks.r[k], disks.t[k]) = (r, t);
+        let (disks, c, _) = disk_in_lane(&leaf, k);
         for _ in 0..20 {
             let reach = [0.0f32, 0.5, 3.0, 100.0][rng.usize(0..4)] * scale;
             let q: [f32; 3] = std::array::from_fn(|a| {
                 c[a] + (rng.f32() - 0.5) * 2.0 * reach + if a == 2 { reach } else { 0.0 }
             });
-            let bound = f64::from(disk_distances2(q, &disks)[k]);
-            for tri in &leaf {
-                let d2 = point_triangle_distance2(q, *tri);
-                assert!(
-                    bound <= d2,
-                    "round {round}: bound {bound} > {d2}, {q:?}, {tri:?}"
-                );
-            }
+            assert_bound_below(q, &disks, k, &leaf, round);
         }
     }
 }
@@ -165,14 +177,8 @@ fn a_leaf_disk_bound_stays_below_the_corner_at_its_rim() {
                 })
             })
             .collect();
-        let (c, nrm, r, t) = leaf_disk(&leaf);
-        let mut disks = Disks::default();
         let k = round % 4;
-        for a in 0..3 {
-            disks.c[a][k] = c[a];
-            disks.n[a][k] = nrm[a];
-        }
-        (disks.r[k], disks.t[k]) = (r, t);
+        let (disks, c, nrm) = disk_in_lane(&leaf, k);
         // The corner farthest from the centre, and its in-plane direction (f64).
         let f = |p: [f32; 3]| p.map(f64::from);
         let (cc, nn) = (f(c), f(nrm));
@@ -198,14 +204,7 @@ fn a_leaf_disk_bound_stays_below_the_corner_at_its_rim() {
             let q: [f32; 3] = std::array::from_fn(|i| {
                 (cc[i] + u[i] / len * (len + past) + nn[i] * (h + height)) as f32
             });
-            let bound = f64::from(disk_distances2(q, &disks)[k]);
-            for tri in &leaf {
-                let d2 = point_triangle_distance2(q, *tri);
-                assert!(
-                    bound <= d2,
-                    "round {round}: bound {bound} > {d2}, {q:?}, {tri:?}"
-                );
-            }
+            assert_bound_below(q, &disks, k, &leaf, round);
         }
     }
 }
