@@ -209,9 +209,9 @@ fn a_leaf_disk_bound_stays_below_the_corner_at_its_rim() {
     }
 }
 
-/// Far above gently curved and flat surfaces, where the disks prune most leaves, and
-/// with exact ties (points straight above grid vertices of a flat grid), the tree still
-/// finds what testing every triangle finds.
+/// Far above flat, gently curved and bumpy surfaces, where the disks prune most leaves and
+/// twigs, and with exact ties (points straight above grid vertices of a flat grid), the tree
+/// still finds what testing every triangle finds.
 #[test]
 fn far_above_a_surface_the_tree_finds_what_testing_every_triangle_finds() {
     let mut rng = fastrand::Rng::with_seed(5);
@@ -233,7 +233,9 @@ fn far_above_a_surface_the_tree_finds_what_testing_every_triangle_finds() {
     let dome = grid(60, &|x, y| {
         -((x - 30.0).powi(2) + (y - 30.0).powi(2)) / 200.0
     });
-    for triangles in [flat, dome] {
+    // Bumps a few mm across: the disks of twigs (up to 64 triangles) are thick there.
+    let bumps = grid(60, &|x, y| 3.0 * (x / 3.0).sin() * (y / 4.0).cos());
+    for triangles in [flat, dome, bumps] {
         let tree = TriangleBvh::from_triangles(&triangles);
         for i in 0..400 {
             let (x, y) = if i % 2 == 0 {
