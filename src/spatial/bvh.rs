@@ -53,9 +53,10 @@ impl Default for Node {
     }
 }
 
-/// Where the triangles of a node's leaf and twig children lie, lane k for child k: within `r` (mm) of the centre `c` and within `t` (mm) of the plane through `c`
-/// with unit normal `n`. A leaf of a gently curved surface is a thin disk, which bounds the
-/// distance of a point well above the surface far more tightly than the leaf's box.
+/// Where the triangles of a node's leaf and twig children lie, lane k for child k: within `r`
+/// (mm) of the centre `c` and within `t` (mm) of the plane through `c` with unit normal `n`.
+/// A leaf (or twig) of a gently curved surface is a thin disk, which bounds the distance of a
+/// point well above the surface far more tightly than its box.
 #[derive(Debug, Clone, Copy, Default)]
 #[repr(C, align(64))]
 pub struct Disks {
