@@ -18,9 +18,9 @@ pub const LEAF: usize = 4;
 /// Most triangles whose boxes are tested together (a leaf's, or a stretch of a cell's list).
 const BATCH: usize = 8;
 /// Most triangles under an inner child (a twig) that gets a disk as a leaf does: near the
-/// leaves, where a patch's box is loosest against its flat shape. At 1 M triangles and 12 mm
-/// out it halves the nodes visited at the two lowest levels; larger twigs (256) cost more
-/// than they prune.
+/// leaves, where a patch's box is loosest against its flat shape. On a 1 M-triangle surface,
+/// 12 mm out, the nodes a query visits at the two lowest levels drop from 7.2 and 12.2 to
+/// 4.6 and 6.6; larger twigs (256) cost more than they prune.
 pub const TWIG: usize = 64;
 /// Subtrees with more triangles than this are built in parallel.
 const PARALLEL: usize = 1 << 14;
