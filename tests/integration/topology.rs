@@ -157,6 +157,46 @@ fn matches_brute_force_on_random_meshes() {
     }
 }
 
+/// Vertex 0 as the apex of one to four cones, each a closed fan of fresh rim vertices: one
+/// closed fan is manifold, several meet at a pinch although every edge has one face each way.
+/// Now and then a face is flipped or dropped, or two cones share a rim vertex, so the closed
+/// vertices' shortcut is checked beside the general path.
+fn random_cones(rng: &mut fastrand::Rng) -> Mesh {
+    let mut positions = vec![[0.0f32; 3]];
+    let mut triangles = Vec::new();
+    for _ in 0..rng.usize(1..5) {
+        let first = positions.len() as u32;
+        let rim = rng.usize(3..9) as u32;
+        for _ in 0..rim {
+            positions.push([rng.f32(), rng.f32(), rng.f32()]);
+        }
+        for i in 0..rim {
+            let (a, mut b) = (first + i, first + (i + 1) % rim);
+            if rng.usize(..40) == 0 && first > 1 {
+                b = rng.u32(1..first);
+            }
+            match rng.usize(..30) {
+                0 => {}
+                1 => triangles.push([0, b, a]),
+                _ => triangles.push([0, a, b]),
+            }
+        }
+    }
+    Mesh::new(positions, triangles).unwrap()
+}
+
+#[test]
+fn matches_brute_force_on_random_cones_at_one_apex() {
+    let mut rng = fastrand::Rng::with_seed(43);
+    let mut pinched = 0;
+    for _ in 0..2000 {
+        let mesh = random_cones(&mut rng);
+        assert_matches_brute_force(&mesh);
+        pinched += Topology::build(&mesh).non_manifold_vertices().contains(&0) as usize;
+    }
+    assert!(pinched > 500, "pinches tested: {pinched}");
+}
+
 /// A torus of 144,000 vertices (many blocks of vertices, found and joined in several waves)
 /// with faults scattered through it: holes, flipped faces, extra faces on edges, faces
 /// meeting it at one vertex only, degenerate faces and unused vertices, numbered at random.
