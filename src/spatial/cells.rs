@@ -272,7 +272,10 @@ struct Lists {
 /// The cells' triangle lists of a grid of `dims` cells in `blocks` blocks, where `range`
 /// gives the cells a triangle overlaps. Stretches of triangles mark, count and fill side by
 /// side, each from its own cursors, so every list holds its triangles in ascending order
-/// whatever the number of threads: the lists a serial pass would make.
+/// whatever the number of threads: the lists a serial pass would make. Each stretch finds
+/// its triangles' cells once, while marking, and keeps them (block and bit, 5 bytes a cell)
+/// for counting and filling: a cell of a triangle found again from its corners cost three
+/// times as much.
 fn cell_lists(
     triangles: &[[[f32; 3]; 3]],
     dims: [usize; 3],
@@ -281,58 +284,61 @@ fn cell_lists(
 ) -> Lists {
     use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
     let n_blocks = blocks[0] * blocks[1] * blocks[2];
-    // Every cell of a box.
-    fn each_cell((lo, hi): CellBox, dims: [usize; 3], mut visit: impl FnMut([usize; 3])) {
-        debug_assert!((0..3).all(|a| hi[a] < dims[a]));
-        for k in lo[2]..=hi[2] {
-            for j in lo[1]..=hi[1] {
-                for i in lo[0]..=hi[0] {
-                    visit([i, j, k]);
-                }
-            }
-        }
-    }
     let stretch = triangles
         .len()
         .div_ceil(rayon::current_num_threads().clamp(1, 8))
         .max(1 << 14);
     let stretches: Vec<&[[[f32; 3]; 3]]> = triangles.chunks(stretch).collect();
-    // Which cells are listed: each stretch's bits, then all of them together.
-    let marks: Vec<Vec<u64>> = stretches
+    // Per stretch, which cells are listed, and its triangles' cells: their blocks (later their
+    // listed-cell numbers), their bits, and where each triangle's cells end.
+    let mut found: Vec<StretchCells> = stretches
         .par_iter()
         .map(|part| {
-            let mut mask = vec![0u64; n_blocks];
+            let mut found = StretchCells {
+                mask: vec![0u64; n_blocks],
+                cells: Vec::with_capacity(part.len() * 3),
+                bits: Vec::with_capacity(part.len() * 3),
+                ends: Vec::with_capacity(part.len()),
+            };
             for t in *part {
-                each_cell(range(t), dims, |c| {
-                    let (b, bit) = block_bit(blocks, c);
-                    mask[b] |= 1 << bit;
-                });
+                let (lo, hi) = range(t);
+                debug_assert!((0..3).all(|a| hi[a] < dims[a]));
+                for k in lo[2]..=hi[2] {
+                    for j in lo[1]..=hi[1] {
+                        for i in lo[0]..=hi[0] {
+                            let (b, bit) = block_bit(blocks, [i, j, k]);
+                            found.mask[b] |= 1 << bit;
+                            found.cells.push(b as u32);
+                            found.bits.push(bit as u8);
+                        }
+                    }
+                }
+                found.ends.push(found.cells.len() as u32);
             }
-            mask
+            found
         })
         .collect();
     let mut listed = vec![0u64; n_blocks];
     listed.par_iter_mut().enumerate().for_each(|(b, m)| {
-        *m = marks.iter().fold(0, |m, mark| m | mark[b]);
+        *m = found.iter().fold(0, |m, f| m | f.mask[b]);
     });
-    drop(marks);
     let mut first = Vec::with_capacity(n_blocks);
     let mut n_listed = 0u32;
     for m in &listed {
         first.push(n_listed);
         n_listed += m.count_ones();
     }
-    let slot_of = |c: [usize; 3]| {
-        let (b, bit) = block_bit(blocks, c);
-        slot(&listed, &first, b, bit)
-    };
-    // Per stretch, its triangles in each listed cell.
-    let mut counts: Vec<Vec<u32>> = stretches
-        .par_iter()
-        .map(|part| {
+    // Per stretch, its triangles in each listed cell; each cell's block turned into its
+    // listed-cell number.
+    let mut counts: Vec<Vec<u32>> = found
+        .par_iter_mut()
+        .map(|found| {
+            found.mask = Vec::new();
             let mut count = vec![0u32; n_listed as usize];
-            for t in *part {
-                each_cell(range(t), dims, |c| count[slot_of(c)] += 1);
+            for (cell, &bit) in found.cells.iter_mut().zip(&found.bits) {
+                let s = slot(&listed, &first, *cell as usize, bit as u32);
+                count[s] += 1;
+                *cell = s as u32;
             }
             count
         })
@@ -355,20 +361,22 @@ fn cell_lists(
         .into_par_iter()
         .map(|_| AtomicU32::new(0))
         .collect_into_vec(&mut ids);
-    stretches
+    found
         .par_iter()
         .zip(counts.par_iter_mut())
         .enumerate()
-        .for_each(|(k, (part, cursor))| {
-            for (i, t) in part.iter().enumerate() {
+        .for_each(|(k, (found, cursor))| {
+            let mut start = 0;
+            for (i, &end) in found.ends.iter().enumerate() {
                 let f = (k * stretch + i) as u32;
-                each_cell(range(t), dims, |c| {
-                    let s = slot_of(c);
-                    ids[cursor[s] as usize].store(f, Relaxed);
-                    cursor[s] += 1;
-                });
+                for &s in &found.cells[start..end as usize] {
+                    ids[cursor[s as usize] as usize].store(f, Relaxed);
+                    cursor[s as usize] += 1;
+                }
+                start = end as usize;
             }
         });
+    drop(found);
     // In place: a Vec's own iterator mapped to a type of the same size and alignment collects
     // into the same buffer (no second buffer of fresh pages).
     let ids: Vec<u32> = ids.into_iter().map(AtomicU32::into_inner).collect();
@@ -378,6 +386,18 @@ fn cell_lists(
         offsets,
         ids,
     }
+}
+
+/// What one stretch of triangles finds while marking its cells.
+struct StretchCells {
+    /// Per block, the bits of the cells its triangles overlap.
+    mask: Vec<u64>,
+    /// Per cell of a triangle, in triangle order: its block, later its listed-cell number.
+    cells: Vec<u32>,
+    /// Per cell of a triangle: its bit in the block.
+    bits: Vec<u8>,
+    /// Per triangle, where its cells end in `cells`.
+    ends: Vec<u32>,
 }
 
 /// The cells with a listed cell among themselves and their 26 neighbours, as block bits
