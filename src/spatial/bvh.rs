@@ -237,7 +237,9 @@ impl Best {
             let i = mask.trailing_zeros() as usize;
             mask &= mask - 1;
             let (f, t) = triangle(i);
-            if gaps[i] <= self.reach && keep(f) {
+            // The best so far (a start offered first, or a triangle listed in two cells)
+            // is not measured again.
+            if gaps[i] <= self.reach && f != self.triangle && keep(f) {
                 self.offer_exact(p, f, t);
             }
         }
@@ -336,11 +338,12 @@ impl TriangleBvh {
     /// Indexes the triangles of `mesh`.
     pub fn build(mesh: &Mesh) -> TriangleBvh {
         let p = mesh.positions();
-        let triangles: Vec<[[f32; 3]; 3]> = mesh
-            .triangles()
+        // Huge pages where offered: written whole at once, 36 bytes a triangle.
+        let mut triangles = crate::hugepages::with_capacity(mesh.n_triangles());
+        mesh.triangles()
             .par_iter()
             .map(|t| t.map(|v| p[v as usize]))
-            .collect();
+            .collect_into_vec(&mut triangles);
         TriangleBvh::from_corners(triangles)
     }
 
@@ -463,7 +466,10 @@ impl TriangleBvh {
             0..0
         };
         for ring in rings {
-            let walls = self.cells.visit_ring(p, ring, |ids, gap2| {
+            // Cells beyond the best distance hold nothing nearer (with room for the rounding
+            // of the cells' walls).
+            let reach = best.distance * (1.0 + 1e-9) + 2.0 * self.cells.slack;
+            let walls = self.cells.visit_ring(p, ring, reach, |ids, gap2| {
                 listed |= !ids.is_empty();
                 if gap2 <= best.distance * best.distance * (1.0 + 1e-9) {
                     for ids in ids.chunks(BATCH) {

@@ -52,7 +52,7 @@ pub struct TriangleCells {
     offsets: Vec<u32>,
     ids: Vec<u32>,
     /// Far above the rounding of a wall's distance at this grid's coordinates (mm).
-    slack: f64,
+    pub slack: f64,
 }
 
 impl TriangleCells {
@@ -190,10 +190,19 @@ impl TriangleCells {
     /// Visits the listed cells of ring `ring` around the cell of `p` (the nearest cell for a
     /// point outside; ring 0 is that cell, ring 1 its 26 neighbours) with a lower bound of the
     /// squared distance from `p` to each (mm^2), and returns how far `p` is from the walls of
-    /// the block of rings 0 to `ring` where the grid goes on, less a slack for rounding (mm; infinite when the
-    /// block is the whole grid): every triangle listed in no cell of the block is at least
-    /// that far, so a triangle of the block strictly closer is the nearest of all.
-    pub fn visit_ring(&self, p: [f32; 3], ring: usize, mut visit: impl FnMut(&[u32], f64)) -> f64 {
+    /// the block of rings 0 to `ring` where the grid goes on, less a slack for rounding (mm;
+    /// infinite when the block is the whole grid): every triangle listed in no cell of the
+    /// block is at least that far, so a triangle of the block strictly closer is the nearest
+    /// of all. Cells further than `reach` (mm) along an axis are passed over without a look:
+    /// a search that has found a triangle at that distance does not need them (a point near
+    /// one wall of its cell then looks at the one to three cells beyond it, not all 26).
+    pub fn visit_ring(
+        &self,
+        p: [f32; 3],
+        ring: usize,
+        reach: f64,
+        mut visit: impl FnMut(&[u32], f64),
+    ) -> f64 {
         if self.listed.is_empty() {
             return f64::NEG_INFINITY;
         }
@@ -202,10 +211,16 @@ impl TriangleCells {
         let at: [usize; 3] = std::array::from_fn(|a| self.cell_of(q[a], a));
         let lo: [usize; 3] = std::array::from_fn(|a| at[a].saturating_sub(ring));
         let hi: [usize; 3] = std::array::from_fn(|a| (at[a] + ring).min(dims[a] - 1));
+        // The cells within reach (all of the block for an infinite reach): a wall of a cell
+        // further than the reach is found on the far side of `q +- reach`.
+        let near_lo: [usize; 3] =
+            std::array::from_fn(|a| lo[a].max(self.cell_of(q[a] - reach, a)).min(at[a]));
+        let near_hi: [usize; 3] =
+            std::array::from_fn(|a| hi[a].min(self.cell_of(q[a] + reach, a).max(at[a])));
         let on_ring = |x: usize, a: usize| x + ring == at[a] || x == at[a] + ring;
-        for k in lo[2]..=hi[2] {
-            for j in lo[1]..=hi[1] {
-                for i in lo[0]..=hi[0] {
+        for k in near_lo[2]..=near_hi[2] {
+            for j in near_lo[1]..=near_hi[1] {
+                for i in near_lo[0]..=near_hi[0] {
                     if !(on_ring(i, 0) || on_ring(j, 1) || on_ring(k, 2)) {
                         continue;
                     }

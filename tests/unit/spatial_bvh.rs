@@ -305,3 +305,65 @@ fn a_query_point_that_is_not_finite_finds_nothing() {
         "{d:?}"
     );
 }
+
+/// Points on and just off a surface, next to and on the walls of the grid's cells, where a
+/// query's own cell does not settle it and the cells across the nearby walls are searched:
+/// with a guessed start (as `compare` gives one) or none, the cells find what testing every
+/// triangle finds, exact ties on a flat grid included.
+#[test]
+fn next_to_cell_walls_the_cells_find_what_testing_every_triangle_finds() {
+    let mut rng = fastrand::Rng::with_seed(17);
+    let grid = |m: usize, height: &dyn Fn(f32, f32) -> f32| {
+        let at = |i: usize, j: usize| {
+            let (x, y) = (i as f32 * 0.7, j as f32 * 0.7);
+            [x, y, height(x, y)]
+        };
+        let mut triangles = Vec::new();
+        for i in 0..m {
+            for j in 0..m {
+                triangles.push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
+                triangles.push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
+            }
+        }
+        triangles
+    };
+    let flat = grid(40, &|_, _| 0.0);
+    let bumps = grid(40, &|x, y| 2.0 * (x / 2.0).sin() * (y / 3.0).cos());
+    for triangles in [flat, bumps] {
+        let tree = TriangleBvh::from_triangles(&triangles);
+        let cells = destair::spatial::cells::TriangleCells::build(&triangles);
+        let mut points = Vec::new();
+        let mut guesses = Vec::new();
+        for i in 0..3000 {
+            let f = rng.usize(0..triangles.len());
+            let t = triangles[f];
+            let (u, v) = (rng.f32(), rng.f32());
+            let (u, v) = if u + v > 1.0 {
+                (1.0 - u, 1.0 - v)
+            } else {
+                (u, v)
+            };
+            let mut p: [f32; 3] = std::array::from_fn(|a| {
+                t[0][a] + u * (t[1][a] - t[0][a]) + v * (t[2][a] - t[0][a])
+            });
+            p[2] += [0.0, 0.01, -0.01, 0.2, -0.3, 0.9, -1.4][i % 7];
+            // Onto the nearest wall along one axis, or a hair either side of it.
+            let a = rng.usize(0..3);
+            let k = ((f64::from(p[a]) - cells.origin[a]) / cells.cell).round();
+            let wall = (cells.origin[a] + k * cells.cell) as f32;
+            p[a] = wall + [0.0, 1e-4, -1e-4, 0.02, -0.05, 0.3, -0.45][rng.usize(0..7)];
+            points.push(p);
+            guesses.push(f as u32);
+        }
+        let slow: Vec<(f64, u32)> = points
+            .iter()
+            .map(|&p| tree.fallback(p, f64::INFINITY, |_| true).unwrap())
+            .collect();
+        for (p, want) in points.iter().zip(&slow) {
+            let fast = tree.nearest(*p).map(|n| (n.distance, n.triangle));
+            assert_eq!(fast, Some(*want), "{p:?}");
+        }
+        let distances: Vec<f64> = slow.iter().map(|s| s.0).collect();
+        assert_eq!(tree.distances_from(&points, &guesses), distances);
+    }
+}

@@ -81,7 +81,7 @@ fn cells_list_the_overlapping_triangles_in_order_for_any_thread_count() {
                         (cells.origin[a] + ([i, j, k][a] as f64 + 0.5) * cells.cell) as f32
                     });
                     let mut list = Vec::new();
-                    cells.visit_ring(p, 0, |ids, _| list.extend_from_slice(ids));
+                    cells.visit_ring(p, 0, f64::INFINITY, |ids, _| list.extend_from_slice(ids));
                     got.push(list);
                 }
             }
