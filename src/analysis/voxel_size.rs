@@ -74,11 +74,22 @@ const VERTEX_CHUNK: usize = 1 << 13;
 /// whole. Both give the same clusters.
 pub fn voxel_size(mesh: &Mesh, topology: &Topology) -> VoxelSizeEstimate {
     let p = mesh.positions();
-    let zero_tol: [f64; 3] = std::array::from_fn(|k| {
-        let max_abs = p.iter().map(|q| q[k].abs()).fold(0.0f32, f32::max) as f64;
-        // Offsets below a few ulps of the largest coordinate are float noise around 0.
-        8.0 * f32::EPSILON as f64 * max_abs.max(1e-6)
-    });
+    // The largest magnitude along each axis, in one parallel pass (`max` passes NaN over,
+    // and the largest of a set does not depend on how it is split).
+    let max_abs = p
+        .par_iter()
+        .with_min_len(VERTEX_CHUNK)
+        .fold(
+            || [0.0f32; 3],
+            |m, q| std::array::from_fn(|k| m[k].max(q[k].abs())),
+        )
+        .reduce(
+            || [0.0f32; 3],
+            |a, b| std::array::from_fn(|k| a[k].max(b[k])),
+        );
+    // Offsets below a few ulps of the largest coordinate are float noise around 0.
+    let zero_tol: [f64; 3] =
+        std::array::from_fn(|k| 8.0 * f32::EPSILON as f64 * (max_abs[k] as f64).max(1e-6));
     let offset =
         |[a, b]: [u32; 2], k: usize| (p[a as usize][k] as f64 - p[b as usize][k] as f64).abs();
     let counted = count_offsets(topology, offset, zero_tol);
