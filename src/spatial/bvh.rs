@@ -466,10 +466,8 @@ impl TriangleBvh {
             0..0
         };
         for ring in rings {
-            // Cells beyond the best distance hold nothing nearer (with room for the rounding
-            // of the cells' walls).
-            let reach = best.distance * (1.0 + 1e-9) + 2.0 * self.cells.slack;
-            let walls = self.cells.visit_ring(p, ring, reach, |ids, gap2| {
+            // Cells beyond the best distance hold nothing nearer.
+            let walls = self.cells.visit_ring(p, ring, best.distance, |ids, gap2| {
                 listed |= !ids.is_empty();
                 if gap2 <= best.distance * best.distance * (1.0 + 1e-9) {
                     for ids in ids.chunks(BATCH) {

@@ -52,7 +52,7 @@ pub struct TriangleCells {
     offsets: Vec<u32>,
     ids: Vec<u32>,
     /// Far above the rounding of a wall's distance at this grid's coordinates (mm).
-    pub slack: f64,
+    slack: f64,
 }
 
 impl TriangleCells {
@@ -193,9 +193,10 @@ impl TriangleCells {
     /// the block of rings 0 to `ring` where the grid goes on, less a slack for rounding (mm;
     /// infinite when the block is the whole grid): every triangle listed in no cell of the
     /// block is at least that far, so a triangle of the block strictly closer is the nearest
-    /// of all. Cells further than `reach` (mm) along an axis are passed over without a look:
-    /// a search that has found a triangle at that distance does not need them (a point near
-    /// one wall of its cell then looks at the one to three cells beyond it, not all 26).
+    /// of all. Cells further than `reach` (mm) along an axis (with room for the rounding of
+    /// their walls) are passed over without a look: a search that has found a triangle at
+    /// that distance does not need them (a point near one wall of its cell then looks at the
+    /// one to three cells beyond it, not all 26).
     pub fn visit_ring(
         &self,
         p: [f32; 3],
@@ -213,6 +214,7 @@ impl TriangleCells {
         let hi: [usize; 3] = std::array::from_fn(|a| (at[a] + ring).min(dims[a] - 1));
         // The cells within reach (all of the block for an infinite reach): a wall of a cell
         // further than the reach is found on the far side of `q +- reach`.
+        let reach = reach * (1.0 + 1e-9) + 2.0 * self.slack;
         let near_lo: [usize; 3] =
             std::array::from_fn(|a| lo[a].max(self.cell_of(q[a] - reach, a)).min(at[a]));
         let near_hi: [usize; 3] =

@@ -209,26 +209,30 @@ fn a_leaf_disk_bound_stays_below_the_corner_at_its_rim() {
     }
 }
 
+/// The triangles of a height field over an m x m grid of squares `step` mm wide, two per
+/// square.
+fn height_grid(m: usize, step: f32, height: &dyn Fn(f32, f32) -> f32) -> Vec<[[f32; 3]; 3]> {
+    let at = |i: usize, j: usize| {
+        let (x, y) = (i as f32 * step, j as f32 * step);
+        [x, y, height(x, y)]
+    };
+    let mut triangles = Vec::new();
+    for i in 0..m {
+        for j in 0..m {
+            triangles.push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
+            triangles.push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
+        }
+    }
+    triangles
+}
+
 /// Far above flat, gently curved and bumpy surfaces, where the disks prune most leaves and
 /// twigs, and with exact ties (points straight above grid vertices of a flat grid), the tree
 /// still finds what testing every triangle finds.
 #[test]
 fn far_above_a_surface_the_tree_finds_what_testing_every_triangle_finds() {
     let mut rng = fastrand::Rng::with_seed(5);
-    let grid = |m: usize, height: &dyn Fn(f32, f32) -> f32| {
-        let at = |i: usize, j: usize| {
-            let (x, y) = (i as f32, j as f32);
-            [x, y, height(x, y)]
-        };
-        let mut triangles = Vec::new();
-        for i in 0..m {
-            for j in 0..m {
-                triangles.push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
-                triangles.push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
-            }
-        }
-        triangles
-    };
+    let grid = |m, height: &dyn Fn(f32, f32) -> f32| height_grid(m, 1.0, height);
     let flat = grid(60, &|_, _| 0.0);
     let dome = grid(60, &|x, y| {
         -((x - 30.0).powi(2) + (y - 30.0).powi(2)) / 200.0
@@ -313,20 +317,7 @@ fn a_query_point_that_is_not_finite_finds_nothing() {
 #[test]
 fn next_to_cell_walls_the_cells_find_what_testing_every_triangle_finds() {
     let mut rng = fastrand::Rng::with_seed(17);
-    let grid = |m: usize, height: &dyn Fn(f32, f32) -> f32| {
-        let at = |i: usize, j: usize| {
-            let (x, y) = (i as f32 * 0.7, j as f32 * 0.7);
-            [x, y, height(x, y)]
-        };
-        let mut triangles = Vec::new();
-        for i in 0..m {
-            for j in 0..m {
-                triangles.push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
-                triangles.push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
-            }
-        }
-        triangles
-    };
+    let grid = |m, height: &dyn Fn(f32, f32) -> f32| height_grid(m, 0.7, height);
     let flat = grid(40, &|_, _| 0.0);
     let bumps = grid(40, &|x, y| 2.0 * (x / 2.0).sin() * (y / 3.0).cos());
     for triangles in [flat, bumps] {
