@@ -195,8 +195,8 @@ impl TriangleCells {
     /// block is at least that far, so a triangle of the block strictly closer is the nearest
     /// of all. Cells further than `reach` (mm) along an axis (with room for the rounding of
     /// their walls) are passed over without a look: a search that has found a triangle at
-    /// that distance does not need them (a point near one wall of its cell then looks at the
-    /// one to three cells beyond it, not all 26).
+    /// that distance does not need them (a point near a wall, an edge or a corner of its cell
+    /// then looks at the one, three or seven cells beyond, not all 26).
     pub fn visit_ring(
         &self,
         p: [f32; 3],

@@ -317,9 +317,8 @@ fn a_query_point_that_is_not_finite_finds_nothing() {
 #[test]
 fn next_to_cell_walls_the_cells_find_what_testing_every_triangle_finds() {
     let mut rng = fastrand::Rng::with_seed(17);
-    let grid = |m, height: &dyn Fn(f32, f32) -> f32| height_grid(m, 0.7, height);
-    let flat = grid(40, &|_, _| 0.0);
-    let bumps = grid(40, &|x, y| 2.0 * (x / 2.0).sin() * (y / 3.0).cos());
+    let flat = height_grid(40, 0.7, &|_, _| 0.0);
+    let bumps = height_grid(40, 0.7, &|x, y| 2.0 * (x / 2.0).sin() * (y / 3.0).cos());
     for triangles in [flat, bumps] {
         let tree = TriangleBvh::from_triangles(&triangles);
         let cells = destair::spatial::cells::TriangleCells::build(&triangles);
