@@ -71,7 +71,7 @@ impl Topology {
                 .map(|i| i * n / parts..(i + 1) * n / parts)
                 .collect()
         };
-        let mut vf_offsets = vec![0u32; n + 1];
+        let mut vf_offsets: Vec<u32> = crate::hugepages::zeroed_vec(n + 1);
         split_lengths(ranges.iter().map(|r| r.len()), &mut vf_offsets[1..])
             .into_par_iter()
             .zip(&ranges)
@@ -85,7 +85,7 @@ impl Topology {
                 }
             });
         prefix_sum(&mut vf_offsets);
-        let mut vf_faces = vec![0u32; vf_offsets[n] as usize];
+        let mut vf_faces: Vec<u32> = crate::hugepages::zeroed_vec(vf_offsets[n] as usize);
         let stretch = |r: &Range<usize>| (vf_offsets[r.end] - vf_offsets[r.start]) as usize;
         split_lengths(ranges.iter().map(stretch), &mut vf_faces)
             .into_par_iter()
@@ -569,15 +569,15 @@ struct Joined {
 impl Joined {
     /// Room for `n` vertices with `n_corners` face corners: a vertex has at most two
     /// neighbours per face, and every edge owns at least one of the two spokes of a corner, so
-    /// the lists never move (pages are touched only as they fill, about half of this on a
-    /// closed manifold).
+    /// the lists never move (pages, huge where the kernel offers them, are touched only as
+    /// they fill, about half of this on a closed manifold).
     fn with_capacity(n: usize, n_corners: usize) -> Joined {
-        let mut vv_offsets = Vec::with_capacity(n + 1);
+        let mut vv_offsets = crate::hugepages::with_capacity(n + 1);
         vv_offsets.push(0);
         Joined {
             vv_offsets,
-            vv_neighbors: Vec::with_capacity(2 * n_corners),
-            edge_n_faces: Vec::with_capacity(n_corners),
+            vv_neighbors: crate::hugepages::with_capacity(2 * n_corners),
+            edge_n_faces: crate::hugepages::with_capacity(n_corners),
             non_manifold_edges: Vec::new(),
             inconsistent_edges: Vec::new(),
             boundary_edges: Vec::new(),

@@ -55,11 +55,13 @@ pub fn copied(values: &[Padded]) -> Vec<Padded> {
 
 /// The values of a working copy made by [`padded`], without its sentinel.
 pub fn unpadded(values: &[Padded]) -> Vec<[f32; 3]> {
+    let mut out = crate::hugepages::with_capacity(values.len().saturating_sub(1));
     values[..values.len().saturating_sub(1)]
         .par_iter()
         .with_min_len(CHUNK)
         .map(|p| p.truncate().to_array())
-        .collect()
+        .collect_into_vec(&mut out);
+    out
 }
 
 /// Neighbours a kernel reads for every vertex at once: a vertex's list and the entries after it,

@@ -350,7 +350,8 @@ pub fn step_scales(
 ) -> (Vec<f32>, Option<Vec<Option<u8>>>) {
     let n = mesh.n_vertices();
     let (offsets, _) = topology.neighbor_csr();
-    let mut scale: Vec<f32> = (0..n)
+    let mut scale: Vec<f32> = crate::hugepages::with_capacity(n);
+    (0..n)
         .into_par_iter()
         .with_min_len(CHUNK)
         .map(|v| {
@@ -361,7 +362,7 @@ pub fn step_scales(
                 weights.as_slice()[v]
             }
         })
-        .collect();
+        .collect_into_vec(&mut scale);
     // Cell-edge moves each vertex along its own grid edge; vertices on none stay put.
     let axes = match *method {
         Method::CellEdge { voxel, .. } => {

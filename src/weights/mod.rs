@@ -36,7 +36,9 @@ pub enum WeightsError {
 impl VertexWeights {
     /// Weight 1 everywhere: plain uniform smoothing.
     pub fn uniform(n_vertices: usize) -> Self {
-        Self(vec![1.0; n_vertices])
+        let mut ones = crate::hugepages::with_capacity(n_vertices);
+        ones.resize(n_vertices, 1.0);
+        Self(ones)
     }
 
     /// Checks count and range.

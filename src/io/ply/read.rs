@@ -374,7 +374,7 @@ fn fixed_vertices(
         off += t.size();
     }
     let all_f32 = types == [ScalarType::F32; 3];
-    let mut positions = vec![[0.0f32; 3]; count];
+    let mut positions: Vec<[f32; 3]> = crate::hugepages::zeroed_vec(count);
     let bad = positions
         .par_chunks_mut(ROWS_PER_CHUNK)
         .enumerate()
@@ -450,7 +450,7 @@ fn triangle_faces(
         return None;
     }
     let rows = &data[pos..pos + row * count];
-    let mut triangles = vec![[0u32; 3]; count];
+    let mut triangles: Vec<[u32; 3]> = crate::hugepages::zeroed_vec(count);
     let (cs, is) = (count_t.size(), item_t.size());
     let failed = triangles
         .par_chunks_mut(ROWS_PER_CHUNK)
