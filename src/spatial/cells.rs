@@ -23,6 +23,16 @@ const B: usize = 4;
 /// fill their box sparsely (a few triangles far apart), where it costs under a byte a cell.
 const CELLS_PER_TRIANGLE: usize = 16;
 
+/// Most (triangle, cell) pairs per triangle of a stretch, beyond [`PAIRS_ROOM`]: a surface of
+/// like-sized triangles has about 3 (a triangle's box overlaps one to eight cells twice its
+/// edge wide). A few huge triangles among many small ones (a sliver across the box, a
+/// triangle soup) can overlap millions of cells each; the grid is then made coarser instead,
+/// which changes only the speed of queries, so memory stays bounded and counts fit `u32`.
+const PAIRS_PER_TRIANGLE: usize = 32;
+
+/// Pairs every stretch may have besides [`PAIRS_PER_TRIANGLE`] per triangle.
+const PAIRS_ROOM: usize = 1 << 16;
+
 /// Cells over the triangles' box, about twice the mean edge length wide, each listing the
 /// triangles whose box overlaps it (CSR over the listed cells only).
 #[derive(Debug, Clone, Default)]
@@ -106,25 +116,28 @@ impl TriangleCells {
                     (sum + length(0) + length(1) + length(2), count + 1)
                 });
         let extent: [f64; 3] = std::array::from_fn(|a| (hi[a] - lo[a]).max(0.0));
-        let (cell, dims) = super::grid_cells(
-            extent,
-            2.0 * edge_sum / (3 * sampled) as f64,
-            n,
-            CELLS_PER_TRIANGLE,
-        );
-        let per_cell = 1.0 / cell;
-        // As `TriangleCells::cell_of`.
-        let cell_of = |x: f64, a: usize| (((x - lo[a]) * per_cell) as usize).min(dims[a] - 1);
-        // The cells a triangle's box overlaps: lowest and highest along each axis.
-        let range = |t: &[[f32; 3]; 3]| -> CellBox {
-            let (mn, mx) = super::triangle_box(t);
-            (
-                std::array::from_fn(|a| cell_of(mn[a] as f64, a)),
-                std::array::from_fn(|a| cell_of(mx[a] as f64, a)),
-            )
+        let mut wanted = 2.0 * edge_sum / (3 * sampled) as f64;
+        // Cells twice as wide until the triangles overlap few enough of them (at most a few
+        // rounds, and only for surfaces of very unequal triangles: see PAIRS_PER_TRIANGLE).
+        let (cell, per_cell, dims, blocks, lists) = loop {
+            let (cell, dims) = super::grid_cells(extent, wanted, n, CELLS_PER_TRIANGLE);
+            let per_cell = 1.0 / cell;
+            // As `TriangleCells::cell_of`.
+            let cell_of = |x: f64, a: usize| (((x - lo[a]) * per_cell) as usize).min(dims[a] - 1);
+            // The cells a triangle's box overlaps: lowest and highest along each axis.
+            let range = |t: &[[f32; 3]; 3]| -> CellBox {
+                let (mn, mx) = super::triangle_box(t);
+                (
+                    std::array::from_fn(|a| cell_of(mn[a] as f64, a)),
+                    std::array::from_fn(|a| cell_of(mx[a] as f64, a)),
+                )
+            };
+            let blocks = dims.map(|d| d.div_ceil(B));
+            match cell_lists(triangles, dims, blocks, range) {
+                Some(lists) => break (cell, per_cell, dims, blocks, lists),
+                None => wanted = 2.0 * cell,
+            }
         };
-        let blocks = dims.map(|d| d.div_ceil(B));
-        let lists = cell_lists(triangles, dims, blocks, range);
         let scale = (0..3)
             .map(|a| lo[a].abs().max(hi[a].abs()))
             .fold(cell, f64::max);
@@ -287,7 +300,8 @@ struct Lists {
 }
 
 /// The cells' triangle lists of a grid of `dims` cells in `blocks` blocks, where `range`
-/// gives the cells a triangle overlaps. Stretches of triangles mark, count and fill side by
+/// gives the cells a triangle overlaps; `None` when a stretch of triangles overlaps more
+/// cells than [`PAIRS_PER_TRIANGLE`] allows (the grid is too fine for them). Stretches of triangles mark, count and fill side by
 /// side, each from its own cursors, so every list holds its triangles in ascending order
 /// whatever the number of threads: the lists a serial pass would make. Each stretch finds
 /// its triangles' cells once, while marking, and keeps them (block and bit, 5 bytes a cell)
@@ -298,7 +312,7 @@ fn cell_lists(
     dims: [usize; 3],
     blocks: [usize; 3],
     range: impl Fn(&[[f32; 3]; 3]) -> CellBox + Sync,
-) -> Lists {
+) -> Option<Lists> {
     use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
     let n_blocks = blocks[0] * blocks[1] * blocks[2];
     let stretch = triangles
@@ -308,7 +322,7 @@ fn cell_lists(
     let stretches: Vec<&[[[f32; 3]; 3]]> = triangles.chunks(stretch).collect();
     // Per stretch, which cells are listed, and its triangles' cells: their blocks (later their
     // listed-cell numbers), their bits, and where each triangle's cells end.
-    let mut found: Vec<StretchCells> = stretches
+    let found: Option<Vec<StretchCells>> = stretches
         .par_iter()
         .map(|part| {
             let mut found = StretchCells {
@@ -317,9 +331,14 @@ fn cell_lists(
                 bits: Vec::with_capacity(part.len() * 3),
                 ends: Vec::with_capacity(part.len()),
             };
+            let most = PAIRS_PER_TRIANGLE * part.len() + PAIRS_ROOM;
             for t in *part {
                 let (lo, hi) = range(t);
                 debug_assert!((0..3).all(|a| hi[a] < dims[a]));
+                let overlapped = (0..3).map(|a| hi[a] + 1 - lo[a]).product::<usize>();
+                if found.cells.len() + overlapped > most {
+                    return None;
+                }
                 for k in lo[2]..=hi[2] {
                     for j in lo[1]..=hi[1] {
                         for i in lo[0]..=hi[0] {
@@ -332,9 +351,15 @@ fn cell_lists(
                 }
                 found.ends.push(found.cells.len() as u32);
             }
-            found
+            Some(found)
         })
         .collect();
+    let mut found = found?;
+    // Every count below fits u32 (the pairs are at most 32 per triangle plus a little).
+    let pairs: usize = found.iter().map(|f| f.cells.len()).sum();
+    if u32::try_from(pairs).is_err() {
+        return None;
+    }
     let mut listed = vec![0u64; n_blocks];
     listed.par_iter_mut().enumerate().for_each(|(b, m)| {
         *m = found.iter().fold(0, |m, f| m | f.mask[b]);
@@ -397,12 +422,12 @@ fn cell_lists(
     // In place: a Vec's own iterator mapped to a type of the same size and alignment collects
     // into the same buffer (no second buffer of fresh pages).
     let ids: Vec<u32> = ids.into_iter().map(AtomicU32::into_inner).collect();
-    Lists {
+    Some(Lists {
         listed,
         first,
         offsets,
         ids,
-    }
+    })
 }
 
 /// What one stretch of triangles finds while marking its cells.

@@ -231,17 +231,39 @@ impl BoxGrid {
             hi = [0.0; 3];
         }
         let extent: [f64; 3] = std::array::from_fn(|k| hi[k] - lo[k]);
-        let wanted = 2.0 * size / (3 * (boxes.len() + extra.len()).max(1)) as f64;
-        let (cell, dims) = super::grid_cells(extent, wanted, boxes.len().max(1), 4);
-        let mut grid = BoxGrid {
-            origin: lo,
-            cell,
-            dims,
-            offsets: vec![0; dims[0] * dims[1] * dims[2] + 1],
-            items: Vec::new(),
+        let mut wanted = 2.0 * size / (3 * (boxes.len() + extra.len()).max(1)) as f64;
+        // A few huge boxes among many small ones would overlap nearly every cell of a grid
+        // sized by the mean: cells twice as wide until the (box, cell) pairs are at most 32 a
+        // box (like-sized boxes have a few), so memory stays bounded and counts fit u32.
+        let most_pairs = (32 * boxes.len() as u64 + (1 << 16)).min(u32::MAX as u64);
+        let mut grid = loop {
+            let (cell, dims) = super::grid_cells(extent, wanted, boxes.len().max(1), 4);
+            let grid = BoxGrid {
+                origin: lo,
+                cell,
+                dims,
+                offsets: Vec::new(),
+                items: Vec::new(),
+            };
+            let pairs: u64 = boxes
+                .iter()
+                .map(|b| {
+                    grid.cell_ranges(b)
+                        .iter()
+                        .map(|r| (r.end() + 1 - r.start()) as u64)
+                        .product::<u64>()
+                })
+                .sum();
+            if pairs <= most_pairs {
+                break BoxGrid {
+                    offsets: vec![0; dims[0] * dims[1] * dims[2] + 1],
+                    ..grid
+                };
+            }
+            wanted = 2.0 * cell;
         };
         for b in boxes {
-            for c in cells(dims, grid.cell_ranges(b)) {
+            for c in cells(grid.dims, grid.cell_ranges(b)) {
                 grid.offsets[c + 1] += 1;
             }
         }
@@ -251,7 +273,7 @@ impl BoxGrid {
         let mut cursor = grid.offsets[..grid.offsets.len() - 1].to_vec();
         grid.items = vec![0; grid.offsets[grid.offsets.len() - 1] as usize];
         for (i, b) in boxes.iter().enumerate() {
-            for c in cells(dims, grid.cell_ranges(b)) {
+            for c in cells(grid.dims, grid.cell_ranges(b)) {
                 grid.items[cursor[c] as usize] = i as u32;
                 cursor[c] += 1;
             }

@@ -97,3 +97,57 @@ fn cells_list_the_overlapping_triangles_in_order_for_any_thread_count() {
         }
     }
 }
+
+/// A few huge slivers across the box among many small triangles would overlap nearly every
+/// cell of a grid sized by the small ones (tens of millions of pairs here, billions on a
+/// large mesh, past `u32`): the grid is made coarser until the pairs are bounded, and every
+/// cell still lists exactly the triangles whose box overlaps it.
+#[test]
+fn huge_slivers_among_small_triangles_keep_the_lists_bounded_and_exact() {
+    let mut rng = fastrand::Rng::with_seed(23);
+    let mut triangles: Vec<[[f32; 3]; 3]> = (0..20_000)
+        .map(|_| {
+            let c: [f32; 3] = std::array::from_fn(|_| rng.f32() * 40.0);
+            std::array::from_fn(|_| std::array::from_fn(|a| c[a] + rng.f32() * 0.3))
+        })
+        .collect();
+    for k in 0..100 {
+        let s = k as f32 * 0.01;
+        triangles.push([[s, 0.0, 0.0], [40.0, 40.0 - s, 40.0], [s, 0.1, 40.0]]);
+    }
+    let cells = TriangleCells::build(&triangles);
+    let [nx, ny, nz] = cells.dims;
+    let cell_of = |x: f32, a: usize| {
+        (((x as f64 - cells.origin[a]) / cells.cell).floor().max(0.0) as usize)
+            .min(cells.dims[a] - 1)
+    };
+    let mut want = vec![Vec::new(); nx * ny * nz];
+    for (f, t) in triangles.iter().enumerate() {
+        let lo: [usize; 3] = std::array::from_fn(|a| cell_of(t[0][a].min(t[1][a]).min(t[2][a]), a));
+        let hi: [usize; 3] = std::array::from_fn(|a| cell_of(t[0][a].max(t[1][a]).max(t[2][a]), a));
+        for k in lo[2]..=hi[2] {
+            for j in lo[1]..=hi[1] {
+                for i in lo[0]..=hi[0] {
+                    want[(k * ny + j) * nx + i].push(f as u32);
+                }
+            }
+        }
+    }
+    let mut pairs = 0;
+    for k in 0..nz {
+        for j in 0..ny {
+            for i in 0..nx {
+                let list = cells.list([i, j, k]);
+                assert_eq!(list, want[(k * ny + j) * nx + i], "cell {i} {j} {k}");
+                pairs += list.len();
+            }
+        }
+    }
+    // At most 32 pairs a triangle and a little room per stretch (at most 8 stretches).
+    assert!(
+        pairs <= 32 * triangles.len() + 8 * (1 << 16),
+        "{pairs} pairs"
+    );
+    // Still a grid, not one cell.
+    assert!(nx * ny * nz > 1000, "{:?}", cells.dims);
+}

@@ -244,3 +244,31 @@ fn two_meshes_intersect_where_they_cross() {
         );
     }
 }
+
+/// Huge slivers across the box among many small triangles: the grid, which would list each
+/// sliver in nearly every cell, is made coarser, and finds the same pairs as testing all.
+#[test]
+fn grid_search_with_huge_slivers_matches_all_pairs() {
+    let mut rng = fastrand::Rng::with_seed(29);
+    let mut positions = Vec::new();
+    let mut triangles = Vec::new();
+    for _ in 0..2000 {
+        let c: [f32; 3] = std::array::from_fn(|_| rng.f32() * 40.0);
+        let base = positions.len() as u32;
+        for _ in 0..3 {
+            positions.push(std::array::from_fn(|a| c[a] + rng.f32() * 0.3));
+        }
+        triangles.push([base, base + 1, base + 2]);
+    }
+    for k in 0..40 {
+        let s = k as f32 * 0.37;
+        let base = positions.len() as u32;
+        positions.extend([[s, 0.0, 0.0], [40.0, 40.0 - s, 40.0], [s, 0.5, 40.0]]);
+        triangles.push([base, base + 1, base + 2]);
+    }
+    let mesh = Mesh::new(positions, triangles).unwrap();
+    let fast = self_intersections(&mesh);
+    assert_eq!(fast, brute_self_intersections(&mesh));
+    // The slivers cross small triangles (and each other at their shared corner region).
+    assert!(fast.len() > 40, "{} pairs", fast.len());
+}
