@@ -90,6 +90,8 @@ impl Default for CapParams {
 pub struct Cap {
     /// The cap's faces, ascending.
     pub faces: Vec<u32>,
+    /// The cap's vertices, each once, in the order detection met them (no order is promised:
+    /// its users test membership or take the rim from the faces).
     pub vertices: Vec<u32>,
     /// Area-weighted unit normal (outward for outward-oriented meshes).
     pub normal: [f32; 3],
