@@ -300,6 +300,9 @@ pub struct NumberingTiming {
     pub numbering: &'static str,
     /// Seconds for the iterations in the numbering the commands work in (best run).
     pub seconds: f64,
+    /// Of `seconds`, the passes alone (best run): the kernel, without making the step scales,
+    /// the neighbour rows and the working copies, or unpadding the result.
+    pub passes_seconds: f64,
     /// Whether the numbering is scattered, so that `smooth` and cohort runs renumber the mesh
     /// to scanline order once after reading, and the iterations ran in that order.
     pub renumbered: bool,
@@ -309,6 +312,25 @@ pub struct NumberingTiming {
     pub renumbering_seconds: Option<f64>,
     /// Largest difference from the phantom numbering's result, vertex for vertex (mm).
     pub max_difference_mm: f32,
+}
+
+/// Seconds of `iterations` Laplace passes (lambda 0.5, weight 1) over `mesh` in its own
+/// numbering (best of `repeat`), with everything the passes read made beforehand.
+fn laplace_passes(mesh: &Mesh, topology: &Topology, iterations: usize, repeat: usize) -> f64 {
+    use crate::mesh::umbrella::{copied, padded, umbrella_pass, NeighbourLists};
+    let (offsets, neighbors) = topology.neighbor_csr();
+    let rows = NeighbourLists::new(offsets, neighbors, None);
+    let scale = vec![1.0f32; mesh.n_vertices()];
+    let start = padded(mesh.positions());
+    let (mut a, mut b) = (copied(&start), copied(&start));
+    best_of(repeat, || {
+        a.copy_from_slice(&start);
+        for _ in 0..iterations {
+            umbrella_pass(&a, &mut b, &rows, &scale, 0.5, None);
+            std::mem::swap(&mut a, &mut b);
+        }
+    })
+    .0
 }
 
 /// Best copy bandwidth over a 256 MB buffer in GB/s, counting bytes read and written.
@@ -429,6 +451,7 @@ pub fn smooth(triangles: usize, iterations: usize, repeat: usize) -> SmoothBench
             let (seconds, (positions, _)) = best_of(repeat, || {
                 smooth(&worked, &t, &laplace, iterations, &w, &free)
             });
+            let passes_seconds = laplace_passes(&worked, &t, iterations, repeat);
             let positions = match &working {
                 Some(r) => r.scatter(&positions),
                 None => positions,
@@ -444,6 +467,7 @@ pub fn smooth(triangles: usize, iterations: usize, repeat: usize) -> SmoothBench
             NumberingTiming {
                 numbering,
                 seconds,
+                passes_seconds,
                 renumbered: working.is_some(),
                 renumbering_seconds,
                 max_difference_mm,

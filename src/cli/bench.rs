@@ -153,9 +153,10 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
             println!("  laplace by vertex numbering:");
             for t in &r.numberings {
                 println!(
-                    "    {:<9} {:.4} s{}  largest difference {:.1e} mm",
+                    "    {:<9} {:.4} s (passes {:.4} s){}  largest difference {:.1e} mm",
                     t.numbering,
                     t.seconds,
+                    t.passes_seconds,
                     match t.renumbering_seconds {
                         Some(r) => format!(
                             " (scattered: run in scanline order; renumbering after reading and back before writing {r:.4} s besides)"
