@@ -53,6 +53,12 @@ pub fn copied(values: &[Padded]) -> Vec<Padded> {
     out
 }
 
+/// A second working copy for a kernel whose passes write every vertex before reading it
+/// (as [`umbrella_pass`] does): zeroed, so nothing is copied and the sentinel is zero.
+pub fn written_before_read(values: &[Padded]) -> Vec<Padded> {
+    crate::hugepages::zeroed_vec(values.len())
+}
+
 /// The values of a working copy made by [`padded`], without its sentinel.
 pub fn unpadded(values: &[Padded]) -> Vec<[f32; 3]> {
     let mut out = crate::hugepages::with_capacity(values.len().saturating_sub(1));

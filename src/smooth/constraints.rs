@@ -5,7 +5,7 @@
 //! when the largest step falls below a threshold (the paper uses 0.002).
 
 use super::{max_step, CHUNK};
-use crate::mesh::umbrella::{copied, padded, unpadded, NeighbourLists, Padded};
+use crate::mesh::umbrella::{padded, unpadded, written_before_read, NeighbourLists, Padded};
 use crate::mesh::Mesh;
 use rayon::prelude::*;
 
@@ -80,7 +80,7 @@ pub(super) fn relax(
 ) -> (Vec<[f32; 3]>, usize, f32, bool) {
     let n = rows.len();
     let mut a = padded(original);
-    let mut b = copied(&a);
+    let mut b = written_before_read(&a);
     let mut last = 0.0f32;
     for iteration in 0..max_iterations {
         b[..n]

@@ -11,7 +11,7 @@
 //! Weight 0 still keeps a vertex exactly in place.
 
 use super::{max_step, CHUNK};
-use crate::mesh::umbrella::{copied, padded, unpadded, NeighbourLists, Padded};
+use crate::mesh::umbrella::{padded, unpadded, written_before_read, NeighbourLists, Padded};
 use rayon::prelude::*;
 
 pub(super) fn hc(
@@ -25,9 +25,9 @@ pub(super) fn hc(
 ) -> (Vec<[f32; 3]>, f32) {
     let n = rows.len();
     let mut q = padded(original);
-    let mut p = copied(&q);
+    let mut p = written_before_read(&q);
     // The differences, with the zero sentinel the rows point short lists at.
-    let mut diff = vec![Padded::ZERO; n + 1];
+    let mut diff: Vec<Padded> = crate::hugepages::zeroed_vec(n + 1);
     for _ in 0..iterations {
         // Laplace step p, scaled by the weight, and difference b, from q.
         p[..n]

@@ -3,7 +3,7 @@
 //! (Moench 2010).
 
 use super::max_step;
-use crate::mesh::umbrella::{copied, padded, umbrella_pass, unpadded, NeighbourLists};
+use crate::mesh::umbrella::{padded, umbrella_pass, unpadded, written_before_read, NeighbourLists};
 
 /// Runs `iterations` iterations; each iteration applies one pass per factor (one for Laplace,
 /// lambda then mu for Taubin). Returns positions and the last pass's largest step.
@@ -16,7 +16,7 @@ pub(super) fn laplace(
     npc_voxel: Option<[f32; 3]>,
 ) -> (Vec<[f32; 3]>, f32) {
     let mut a = padded(original);
-    let mut b = copied(&a);
+    let mut b = written_before_read(&a);
     for _ in 0..iterations {
         for &f in factors {
             umbrella_pass(&a, &mut b, rows, scale, f, npc_voxel.map(|v| (original, v)));

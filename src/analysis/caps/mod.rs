@@ -21,7 +21,7 @@ mod region;
 
 use crate::mesh::face_neighbours::FaceNeighbours;
 use crate::mesh::geometry::triangle_area_vector;
-use crate::mesh::umbrella::{copied, padded, umbrella_pass, unpadded, NeighbourLists};
+use crate::mesh::umbrella::{padded, umbrella_pass, unpadded, written_before_read, NeighbourLists};
 use crate::mesh::{Mesh, Topology};
 use crate::metrics::normal_curvature::TurnLimits;
 use rayon::prelude::*;
@@ -332,7 +332,7 @@ fn low_pass(mesh: &Mesh, topology: &Topology, iterations: usize) -> Vec<[f32; 3]
         .collect();
     let rows = NeighbourLists::new(offsets, neighbors, None);
     let mut a = padded(mesh.positions());
-    let mut b = copied(&a);
+    let mut b = written_before_read(&a);
     for _ in 0..iterations {
         umbrella_pass(&a, &mut b, &rows, &scale, 0.5, None);
         std::mem::swap(&mut a, &mut b);
