@@ -34,6 +34,29 @@ fn near_listed_is_any_listed_cell_of_the_block() {
     }
 }
 
+/// Each cell's triangles by hand, indexed x + nx (y + ny z): every triangle whose box
+/// overlaps the cell, in ascending order.
+fn lists_by_hand(cells: &TriangleCells, triangles: &[[[f32; 3]; 3]]) -> Vec<Vec<u32>> {
+    let [nx, ny, nz] = cells.dims;
+    let cell_of = |x: f32, a: usize| {
+        (((x as f64 - cells.origin[a]) / cells.cell).floor().max(0.0) as usize)
+            .min(cells.dims[a] - 1)
+    };
+    let mut want = vec![Vec::new(); nx * ny * nz];
+    for (f, t) in triangles.iter().enumerate() {
+        let lo: [usize; 3] = std::array::from_fn(|a| cell_of(t[0][a].min(t[1][a]).min(t[2][a]), a));
+        let hi: [usize; 3] = std::array::from_fn(|a| cell_of(t[0][a].max(t[1][a]).max(t[2][a]), a));
+        for k in lo[2]..=hi[2] {
+            for j in lo[1]..=hi[1] {
+                for i in lo[0]..=hi[0] {
+                    want[(k * ny + j) * nx + i].push(f as u32);
+                }
+            }
+        }
+    }
+    want
+}
+
 /// Every cell lists exactly the triangles whose box overlaps it, in ascending order, for any
 /// number of threads (the lists are counted and filled in stretches side by side).
 #[test]
@@ -54,25 +77,7 @@ fn cells_list_the_overlapping_triangles_in_order_for_any_thread_count() {
             .unwrap();
         let cells = pool.install(|| TriangleCells::build(&triangles));
         let [nx, ny, nz] = cells.dims;
-        // The lists by hand: each triangle's box, cell by cell.
-        let cell_of = |x: f32, a: usize| {
-            (((x as f64 - cells.origin[a]) / cells.cell).floor().max(0.0) as usize)
-                .min(cells.dims[a] - 1)
-        };
-        let mut want = vec![Vec::new(); nx * ny * nz];
-        for (f, t) in triangles.iter().enumerate() {
-            let lo: [usize; 3] =
-                std::array::from_fn(|a| cell_of(t[0][a].min(t[1][a]).min(t[2][a]), a));
-            let hi: [usize; 3] =
-                std::array::from_fn(|a| cell_of(t[0][a].max(t[1][a]).max(t[2][a]), a));
-            for k in lo[2]..=hi[2] {
-                for j in lo[1]..=hi[1] {
-                    for i in lo[0]..=hi[0] {
-                        want[(k * ny + j) * nx + i].push(f as u32);
-                    }
-                }
-            }
-        }
+        let want = lists_by_hand(&cells, &triangles);
         let mut got = Vec::with_capacity(want.len());
         for k in 0..nz {
             for j in 0..ny {
@@ -117,22 +122,7 @@ fn huge_slivers_among_small_triangles_keep_the_lists_bounded_and_exact() {
     }
     let cells = TriangleCells::build(&triangles);
     let [nx, ny, nz] = cells.dims;
-    let cell_of = |x: f32, a: usize| {
-        (((x as f64 - cells.origin[a]) / cells.cell).floor().max(0.0) as usize)
-            .min(cells.dims[a] - 1)
-    };
-    let mut want = vec![Vec::new(); nx * ny * nz];
-    for (f, t) in triangles.iter().enumerate() {
-        let lo: [usize; 3] = std::array::from_fn(|a| cell_of(t[0][a].min(t[1][a]).min(t[2][a]), a));
-        let hi: [usize; 3] = std::array::from_fn(|a| cell_of(t[0][a].max(t[1][a]).max(t[2][a]), a));
-        for k in lo[2]..=hi[2] {
-            for j in lo[1]..=hi[1] {
-                for i in lo[0]..=hi[0] {
-                    want[(k * ny + j) * nx + i].push(f as u32);
-                }
-            }
-        }
-    }
+    let want = lists_by_hand(&cells, &triangles);
     let mut pairs = 0;
     for k in 0..nz {
         for j in 0..ny {
