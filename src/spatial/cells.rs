@@ -23,16 +23,6 @@ const B: usize = 4;
 /// fill their box sparsely (a few triangles far apart), where it costs under a byte a cell.
 const CELLS_PER_TRIANGLE: usize = 16;
 
-/// Most (triangle, cell) pairs per triangle of a stretch, beyond [`PAIRS_ROOM`]: a surface of
-/// like-sized triangles has about 3 (a triangle's box overlaps one to eight cells twice its
-/// edge wide). A few huge triangles among many small ones (a sliver across the box, a
-/// triangle soup) can overlap millions of cells each; the grid is then made coarser instead,
-/// which changes only the speed of queries, so memory stays bounded and counts fit `u32`.
-const PAIRS_PER_TRIANGLE: usize = 32;
-
-/// Pairs every stretch may have besides [`PAIRS_PER_TRIANGLE`] per triangle.
-const PAIRS_ROOM: usize = 1 << 16;
-
 /// Cells over the triangles' box, about twice the mean edge length wide, each listing the
 /// triangles whose box overlaps it (CSR over the listed cells only).
 #[derive(Debug, Clone, Default)]
@@ -117,8 +107,8 @@ impl TriangleCells {
                 });
         let extent: [f64; 3] = std::array::from_fn(|a| (hi[a] - lo[a]).max(0.0));
         let mut wanted = 2.0 * edge_sum / (3 * sampled) as f64;
-        // Cells twice as wide until the triangles overlap few enough of them (at most a few
-        // rounds, and only for surfaces of very unequal triangles: see PAIRS_PER_TRIANGLE).
+        // Cells twice as wide until the triangles overlap few enough of them (a few rounds at
+        // most, and only for surfaces of very unequal triangles: see PAIRS_PER_ITEM).
         let (cell, per_cell, dims, blocks, lists) = loop {
             let (cell, dims) = super::grid_cells(extent, wanted, n, CELLS_PER_TRIANGLE);
             let per_cell = 1.0 / cell;
@@ -301,8 +291,8 @@ struct Lists {
 
 /// The cells' triangle lists of a grid of `dims` cells in `blocks` blocks, where `range`
 /// gives the cells a triangle overlaps; `None` when a stretch of triangles overlaps more
-/// cells than [`PAIRS_PER_TRIANGLE`] allows (the grid is too fine for them). Stretches of triangles mark, count and fill side by
-/// side, each from its own cursors, so every list holds its triangles in ascending order
+/// cells than [`PAIRS_PER_ITEM`](super::PAIRS_PER_ITEM) allows (the grid is too fine for
+/// them). Stretches of triangles mark, count and fill side by side, each from its own cursors, so every list holds its triangles in ascending order
 /// whatever the number of threads: the lists a serial pass would make. Each stretch finds
 /// its triangles' cells once, while marking, and keeps them (block and bit, 5 bytes a cell)
 /// for counting and filling: a cell of a triangle found again from its corners cost three
@@ -331,7 +321,7 @@ fn cell_lists(
                 bits: Vec::with_capacity(part.len() * 3),
                 ends: Vec::with_capacity(part.len()),
             };
-            let most = PAIRS_PER_TRIANGLE * part.len() + PAIRS_ROOM;
+            let most = super::PAIRS_PER_ITEM * part.len() + super::PAIRS_ROOM;
             for t in *part {
                 let (lo, hi) = range(t);
                 debug_assert!((0..3).all(|a| hi[a] < dims[a]));

@@ -232,10 +232,9 @@ impl BoxGrid {
         }
         let extent: [f64; 3] = std::array::from_fn(|k| hi[k] - lo[k]);
         let mut wanted = 2.0 * size / (3 * (boxes.len() + extra.len()).max(1)) as f64;
-        // A few huge boxes among many small ones would overlap nearly every cell of a grid
-        // sized by the mean: cells twice as wide until the (box, cell) pairs are at most 32 a
-        // box (like-sized boxes have a few), so memory stays bounded and counts fit u32.
-        let most_pairs = (32 * boxes.len() as u64 + (1 << 16)).min(u32::MAX as u64);
+        // Cells twice as wide until the boxes overlap few enough of them (see PAIRS_PER_ITEM).
+        let most_pairs =
+            ((super::PAIRS_PER_ITEM * boxes.len() + super::PAIRS_ROOM) as u64).min(u32::MAX as u64);
         let mut grid = loop {
             let (cell, dims) = super::grid_cells(extent, wanted, boxes.len().max(1), 4);
             let grid = BoxGrid {

@@ -164,6 +164,17 @@ pub fn point_triangle_distance2(p: [f32; 3], t: [[f32; 3]; 3]) -> f64 {
     dot(d, d)
 }
 
+/// Most (item, cell) pairs per item a grid may list, beyond [`PAIRS_ROOM`]: like-sized
+/// triangles or boxes overlap about 3 cells each (one to eight cells twice their size). A few
+/// huge items among many small ones (a sliver across the box, a triangle soup) can overlap
+/// millions of cells each; the grid is then made coarser instead, which changes only the
+/// speed of its searches, so memory stays bounded and counts fit `u32`.
+pub(crate) const PAIRS_PER_ITEM: usize = 32;
+
+/// Pairs a grid (or each stretch of items building one) may list besides [`PAIRS_PER_ITEM`]
+/// per item.
+pub(crate) const PAIRS_ROOM: usize = 1 << 16;
+
 /// Cell size and cell counts of a uniform grid over a box of `extent` (mm): cells of about
 /// `wanted` mm, but no more than `per_item` per item (`per_item` n + 64 in all).
 pub(crate) fn grid_cells(
