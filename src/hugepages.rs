@@ -5,7 +5,9 @@
 /// Below this, buffers are left to the allocator as they are.
 const MIN_BYTES: usize = 4 << 20;
 
-/// A vector of `n` default (all-zero) values whose pages are advised to be huge.
+/// A vector of `n` default (all-zero) values whose pages are advised to be huge. Lazily
+/// zeroed (fresh pages, advised before first touch) only for the types `vec!` allocates zeroed:
+/// integers, floats and arrays of them; any other type is filled on one thread first.
 pub fn zeroed_vec<T: Copy + Default>(n: usize) -> Vec<T> {
     let v = vec![T::default(); n];
     advise(&v);

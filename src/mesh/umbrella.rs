@@ -54,9 +54,16 @@ pub fn copied(values: &[Padded]) -> Vec<Padded> {
 }
 
 /// A second working copy for a kernel whose passes write every vertex before reading it
-/// (as [`umbrella_pass`] does): zeroed, so nothing is copied and the sentinel is zero.
+/// (as [`umbrella_pass`] does): zeros written in parallel (nothing is read; `Padded` has no
+/// lazily zeroed allocation, so `vec!` would fill it on one thread), the sentinel zero.
 pub fn written_before_read(values: &[Padded]) -> Vec<Padded> {
-    crate::hugepages::zeroed_vec(values.len())
+    let mut out = crate::hugepages::with_capacity(values.len());
+    (0..values.len())
+        .into_par_iter()
+        .with_min_len(CHUNK)
+        .map(|_| Padded::ZERO)
+        .collect_into_vec(&mut out);
+    out
 }
 
 /// The values of a working copy made by [`padded`], without its sentinel.

@@ -27,7 +27,7 @@ pub(super) fn hc(
     let mut q = padded(original);
     let mut p = written_before_read(&q);
     // The differences, with the zero sentinel the rows point short lists at.
-    let mut diff: Vec<Padded> = crate::hugepages::zeroed_vec(n + 1);
+    let mut diff = written_before_read(&q);
     for _ in 0..iterations {
         // Laplace step p, scaled by the weight, and difference b, from q.
         p[..n]
