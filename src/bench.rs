@@ -284,6 +284,16 @@ pub struct SmoothBench {
     /// needs at that rate to stream its arrays once per iteration (s): the memory-bandwidth bound.
     pub copy_gb_per_s: f64,
     pub laplace_bound_s: f64,
+    /// The phantom numbering's passes alone on one thread (s): against its `passes_seconds`,
+    /// how the kernel scales with threads (a kernel twice as fast on two threads is limited
+    /// by each core, not by the memory they share).
+    pub passes_one_thread_s: f64,
+    /// Vertex updates per second of the same kernel on one thread over a blob of
+    /// [`IN_CACHE_TRIANGLES`] triangles, whose arrays stay in cache: the core's own limit.
+    pub in_cache_updates_per_s: f64,
+    /// The time Laplace needs at that rate on every thread (s): the compute bound, which
+    /// binds where it is above the memory-bandwidth bound.
+    pub laplace_compute_bound_s: f64,
     /// Symmetric Hausdorff distance between the phantom and its Laplace-smoothed version,
     /// including building both indexes (seconds).
     pub hausdorff_s: f64,
@@ -334,6 +344,19 @@ fn laplace_passes(mesh: &Mesh, topology: &Topology, iterations: usize, repeat: u
         }
     })
     .0
+}
+
+/// Triangles of the blob whose Laplace passes run with every array in cache (about 10 k
+/// vertices: 0.7 MB of positions, rows and scales, within a core's L2 cache on common
+/// machines: 1 MB on the one the issues were measured on).
+pub const IN_CACHE_TRIANGLES: usize = 20_000;
+
+/// `f` on a pool of one thread (on the current pool if one cannot be started).
+fn on_one_thread<T: Send>(f: impl FnOnce() -> T + Send) -> T {
+    match rayon::ThreadPoolBuilder::new().num_threads(1).build() {
+        Ok(pool) => pool.install(f),
+        Err(_) => f(),
+    }
 }
 
 /// Best copy bandwidth over a 256 MB buffer in GB/s, counting bytes read and written.
@@ -482,6 +505,17 @@ pub fn smooth(triangles: usize, iterations: usize, repeat: usize) -> SmoothBench
     let (_, neighbors) = topology.neighbor_csr();
     let bytes = (mesh.n_vertices() * (12 + 12 + 4 + 4) + 4 * neighbors.len()) * iterations;
     let laplace_bound_s = bytes as f64 / (copy_gb_per_s * 1e9);
+    let passes_one_thread_s =
+        on_one_thread(|| laplace_passes(&mesh, &topology, iterations, repeat));
+    let (small, _) = big_mesh(IN_CACHE_TRIANGLES);
+    let small_topology = Topology::build(&small);
+    // Enough iterations that the small mesh's passes take a measurable while.
+    let small_iterations = 20 * iterations.max(1);
+    let small_s =
+        on_one_thread(|| laplace_passes(&small, &small_topology, small_iterations, repeat));
+    let in_cache_updates_per_s = (small.n_vertices() * small_iterations) as f64 / small_s;
+    let laplace_compute_bound_s = (mesh.n_vertices() * iterations) as f64
+        / (in_cache_updates_per_s * rayon::current_num_threads() as f64);
     let (hausdorff_s, _) = best_of(repeat, || {
         crate::metrics::hausdorff_distance(&mesh, &smoothed)
     });
@@ -494,6 +528,9 @@ pub fn smooth(triangles: usize, iterations: usize, repeat: usize) -> SmoothBench
         numberings,
         copy_gb_per_s,
         laplace_bound_s,
+        passes_one_thread_s,
+        in_cache_updates_per_s,
+        laplace_compute_bound_s,
         hausdorff_s,
         hausdorff_queries_per_s: (2 * mesh.n_vertices()) as f64 / hausdorff_s,
     }

@@ -171,6 +171,14 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
                 r.laplace_bound_s, r.copy_gb_per_s
             );
             println!(
+                "    compute   {:.4} s  (the kernel in cache: {:.0} M updates/s on one thread, over a {} k triangle blob, times {} threads); phantom passes on one thread {:.4} s",
+                r.laplace_compute_bound_s,
+                r.in_cache_updates_per_s / 1e6,
+                destair::bench::IN_CACHE_TRIANGLES / 1000,
+                r.threads,
+                r.passes_one_thread_s
+            );
+            println!(
                 "  hausdorff  {:.4} s  ({:.2} M point-to-surface queries/s, indexes included)",
                 r.hausdorff_s,
                 r.hausdorff_queries_per_s / 1e6

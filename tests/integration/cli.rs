@@ -98,6 +98,52 @@ fn bench_io_runs_small() {
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
 }
 
+/// `bench smooth` on a small phantom: every smoother timed, the three numberings giving the
+/// same surface, and both bounds of the Laplace kernel reported and consistent.
+#[test]
+fn bench_smooth_reports_both_bounds() {
+    let out = destair(&[
+        "--threads",
+        "2",
+        "bench",
+        "smooth",
+        "--triangles",
+        "20000",
+        "--iterations",
+        "2",
+        "--repeat",
+        "1",
+        "--json",
+    ]);
+    assert_ok(&out);
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let f = |key: &str| {
+        json[key]
+            .as_f64()
+            .unwrap_or_else(|| panic!("{key}: {json}"))
+    };
+    assert_eq!(json["smoothers"].as_array().unwrap().len(), 8);
+    for numbering in json["numberings"].as_array().unwrap() {
+        assert!(
+            numbering["passes_seconds"].as_f64().unwrap() > 0.0,
+            "{numbering}"
+        );
+        assert!(
+            numbering["max_difference_mm"].as_f64().unwrap() < 1e-3,
+            "{numbering}"
+        );
+    }
+    assert!(f("laplace_bound_s") > 0.0 && f("passes_one_thread_s") > 0.0);
+    // The compute bound is the in-cache rate on every thread, for this mesh's updates.
+    let updates = f("n_vertices") * f("iterations");
+    let expected = updates / (f("in_cache_updates_per_s") * f("threads"));
+    let bound = f("laplace_compute_bound_s");
+    assert!(
+        bound > 0.0 && (bound - expected).abs() <= 1e-9 * expected,
+        "{bound} against {expected}"
+    );
+}
+
 /// `bench context --shuffle` renumbers the vertices and lists the faces in another order: the
 /// same surface, so the same query distances as in the phantom's own numbering (their mean summed
 /// in the faces' order, so to the rounding of the sum).
