@@ -24,6 +24,11 @@ fn c3(p: P) -> Coord3D<f64> {
 /// Sign of the orientation of d against the plane (a, b, c): exact, -1, 0 or 1.
 #[inline]
 fn orient(a: P, b: P, c: P, d: P) -> i8 {
+    // Four points in one axis-aligned plane (a staircase's terraces and walls) are coplanar:
+    // 0 at once, where the predicate would take its slowest, exact path to find it.
+    if (0..3).any(|k| a[k] == b[k] && a[k] == c[k] && a[k] == d[k]) {
+        return 0;
+    }
     let o = orient3d(c3(a), c3(b), c3(c), c3(d));
     (o > 0.0) as i8 - (o < 0.0) as i8
 }
@@ -42,9 +47,16 @@ fn flat(p: P, drop: usize) -> Coord<f64> {
     }
 }
 
+/// Sign of the orientation of c against the line (a, b) in the projection without axis
+/// `drop`: exact, -1, 0 or 1.
 #[inline]
 fn orient_flat(a: P, b: P, c: P, drop: usize) -> i8 {
-    let o = orient2d(flat(a, drop), flat(b, drop), flat(c, drop));
+    let (a, b, c) = (flat(a, drop), flat(b, drop), flat(c, drop));
+    // Three points on one axis-parallel line (the edges of a staircase) are collinear.
+    if (a.x == b.x && a.x == c.x) || (a.y == b.y && a.y == c.y) {
+        return 0;
+    }
+    let o = orient2d(a, b, c);
     (o > 0.0) as i8 - (o < 0.0) as i8
 }
 
@@ -107,8 +119,12 @@ fn inside_flat(p: P, t: [P; 3], drop: usize) -> bool {
 /// Whether the closed segment pq meets the closed, non-degenerate triangle t.
 pub fn segment_meets_triangle(p: P, q: P, t: [P; 3]) -> bool {
     let [a, b, c] = t;
-    let o1 = orient(a, b, c, p);
-    let o2 = orient(a, b, c, q);
+    segment_meets_triangle_oriented(p, q, t, orient(a, b, c, p), orient(a, b, c, q))
+}
+
+/// [`segment_meets_triangle`] given the orientations `o1`, `o2` of p and q against t's plane.
+fn segment_meets_triangle_oriented(p: P, q: P, t: [P; 3], o1: i8, o2: i8) -> bool {
+    let [a, b, c] = t;
     if o1 * o2 > 0 {
         return false;
     }
@@ -138,6 +154,10 @@ pub fn triangles_intersect(t: [P; 3], u: [P; 3]) -> bool {
     if side_u.iter().all(|&s| s > 0) || side_u.iter().all(|&s| s < 0) {
         return false;
     }
+    if side_u == [0; 3] {
+        // Coplanar (a staircase's flat terraces are full of such neighbours).
+        return projection_axis(t).is_some_and(|drop| triangles_meet_flat(t, u, drop));
+    }
     let side_t = [0, 1, 2].map(|k| orient(u[0], u[1], u[2], t[k]));
     if side_t.iter().all(|&s| s > 0) || side_t.iter().all(|&s| s < 0) {
         return false;
@@ -154,11 +174,28 @@ pub fn faces_intersect(ti: [u32; 3], t: [P; 3], ui: [u32; 3], u: [P; 3]) -> bool
         0 => triangles_intersect(t, u),
         1 => {
             // Shared corner v: the faces meet elsewhere iff the edge opposite v in one meets
-            // the other face.
+            // the other face. Where that edge lies strictly on one side of the other face's
+            // plane, so does all of its face but v, and they meet at v alone (most pairs end
+            // there, after two orientations); coplanar faces meet beyond v iff their corners
+            // at v overlap.
             let k = shared_in_t.iter().position(|&s| s).unwrap_or(0);
             let m = ui.iter().position(|&x| x == ti[k]).unwrap_or(0);
-            segment_meets_triangle(t[(k + 1) % 3], t[(k + 2) % 3], u)
-                || segment_meets_triangle(u[(m + 1) % 3], u[(m + 2) % 3], t)
+            let (a, b) = (t[(k + 1) % 3], t[(k + 2) % 3]);
+            let (c, d) = (u[(m + 1) % 3], u[(m + 2) % 3]);
+            let (oa, ob) = (orient(u[0], u[1], u[2], a), orient(u[0], u[1], u[2], b));
+            if oa * ob > 0 {
+                return false;
+            }
+            if oa == 0 && ob == 0 {
+                return projection_axis(u)
+                    .is_some_and(|drop| corners_overlap_flat(t[k], (a, b), (c, d), drop));
+            }
+            let (oc, od) = (orient(t[0], t[1], t[2], c), orient(t[0], t[1], t[2], d));
+            if oc * od > 0 {
+                return false;
+            }
+            segment_meets_triangle_oriented(a, b, u, oa, ob)
+                || segment_meets_triangle_oriented(c, d, t, oc, od)
         }
         2 => {
             // Shared edge: they overlap iff coplanar with both opposite corners on one side.
@@ -177,6 +214,33 @@ pub fn faces_intersect(ti: [u32; 3], t: [P; 3], ui: [u32; 3], u: [P; 3]) -> bool
         // The same three corners: one face lies on the other.
         _ => true,
     }
+}
+
+/// Whether two coplanar, non-degenerate closed triangles meet, in the projection without axis
+/// `drop` (exact): they are disjoint iff the line along a side of one has the other strictly
+/// on the far side of it from its own third corner.
+fn triangles_meet_flat(t: [P; 3], u: [P; 3], drop: usize) -> bool {
+    let separates = |x: [P; 3], y: [P; 3]| {
+        (0..3).any(|k| {
+            let (p, q, r) = (x[k], x[(k + 1) % 3], x[(k + 2) % 3]);
+            let own = orient_flat(p, q, r, drop);
+            y.iter().all(|&z| orient_flat(p, q, z, drop) * own < 0)
+        })
+    };
+    !separates(t, u) && !separates(u, t)
+}
+
+/// Whether two coplanar, non-degenerate triangles with the common corner v, the one's other
+/// corners `ab` and the other's `cd`, overlap beyond v, in the projection without axis
+/// `drop`: near v each triangle is its corner's wedge (under 180 degrees), and two such
+/// wedges overlap iff one holds a side of the other (exact).
+fn corners_overlap_flat(v: P, (a, b): (P, P), (c, d): (P, P), drop: usize) -> bool {
+    // Whether the ray from v through x lies in the closed wedge from v along p and q.
+    let holds = |p: P, q: P, x: P| {
+        let s = orient_flat(v, p, q, drop);
+        orient_flat(v, p, x, drop) * s >= 0 && orient_flat(v, x, q, drop) * s >= 0
+    };
+    holds(a, b, c) || holds(a, b, d) || holds(c, d, a) || holds(c, d, b)
 }
 
 /// Faces of `mesh` whose corners are exactly collinear (including repeated indices).
@@ -245,7 +309,7 @@ impl BoxGrid {
                 items: Vec::new(),
             };
             let pairs: u64 = boxes
-                .iter()
+                .par_iter()
                 .map(|b| {
                     grid.cell_ranges(b)
                         .iter()
@@ -261,29 +325,64 @@ impl BoxGrid {
             }
             wanted = 2.0 * cell;
         };
-        for b in boxes {
+        // Counted and filled by all threads (atomics), then each cell's list sorted: boxes in
+        // ascending order, as one thread filling them in order would list them.
+        use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
+        let n_cells = grid.offsets.len() - 1;
+        let counts: Vec<AtomicU32> = (0..n_cells)
+            .into_par_iter()
+            .map(|_| AtomicU32::new(0))
+            .collect();
+        boxes.par_iter().for_each(|b| {
             for c in cells(grid.dims, grid.cell_ranges(b)) {
-                grid.offsets[c + 1] += 1;
+                counts[c].fetch_add(1, Relaxed);
             }
+        });
+        for (c, count) in counts.iter().enumerate() {
+            grid.offsets[c + 1] = grid.offsets[c] + count.load(Relaxed);
         }
-        for c in 1..grid.offsets.len() {
-            grid.offsets[c] += grid.offsets[c - 1];
-        }
-        let mut cursor = grid.offsets[..grid.offsets.len() - 1].to_vec();
-        grid.items = vec![0; grid.offsets[grid.offsets.len() - 1] as usize];
-        for (i, b) in boxes.iter().enumerate() {
+        // Each cell's next free place (the counts, no longer needed, become the cursors).
+        counts
+            .par_iter()
+            .zip(&grid.offsets[..n_cells])
+            .for_each(|(cursor, &start)| cursor.store(start, Relaxed));
+        let items: Vec<AtomicU32> = (0..grid.offsets[n_cells])
+            .into_par_iter()
+            .map(|_| AtomicU32::new(0))
+            .collect();
+        boxes.par_iter().enumerate().for_each(|(i, b)| {
             for c in cells(grid.dims, grid.cell_ranges(b)) {
-                grid.items[cursor[c] as usize] = i as u32;
-                cursor[c] += 1;
+                items[counts[c].fetch_add(1, Relaxed) as usize].store(i as u32, Relaxed);
             }
+        });
+        grid.items = items.into_iter().map(AtomicU32::into_inner).collect();
+        // Runs of cells side by side, each sorting its cells' lists in its stretch of items.
+        const RUN: usize = 4096;
+        let offsets = &grid.offsets;
+        let mut runs: Vec<(usize, &mut [u32])> = Vec::with_capacity(n_cells.div_ceil(RUN));
+        let mut rest = grid.items.as_mut_slice();
+        for first in (0..n_cells).step_by(RUN) {
+            let last = (first + RUN).min(n_cells);
+            let (run, tail) = rest.split_at_mut((offsets[last] - offsets[first]) as usize);
+            runs.push((first, run));
+            rest = tail;
         }
+        runs.into_par_iter().for_each(|(first, run)| {
+            let base = offsets[first];
+            let last = (first + RUN).min(n_cells);
+            for w in offsets[first..=last].windows(2) {
+                run[(w[0] - base) as usize..(w[1] - base) as usize].sort_unstable();
+            }
+        });
         grid
     }
 
     /// The cell index along axis k holding coordinate x (clamped to the grid).
     #[inline]
     fn cell_of(&self, x: f32, k: usize) -> usize {
-        (((x as f64 - self.origin[k]) / self.cell).floor().max(0.0) as usize).min(self.dims[k] - 1)
+        // The cast rounds toward zero and takes what is below 0 (or NaN) to 0: the floor,
+        // clamped at 0, without a call to `floor`.
+        (((x as f64 - self.origin[k]) / self.cell) as usize).min(self.dims[k] - 1)
     }
 
     fn cell_ranges(&self, b: &Aabb) -> [std::ops::RangeInclusive<usize>; 3] {
@@ -319,13 +418,24 @@ fn cells(dims: [usize; 3], r: [std::ops::RangeInclusive<usize>; 3]) -> impl Iter
 pub fn self_intersections(mesh: &Mesh) -> Vec<[u32; 2]> {
     let p = mesh.positions();
     let tris = mesh.triangles();
-    let corners: Vec<[P; 3]> = tris.iter().map(|t| t.map(|v| p[v as usize])).collect();
+    let corners: Vec<[P; 3]> = tris.par_iter().map(|t| t.map(|v| p[v as usize])).collect();
     let valid: Vec<bool> = corners
         .par_iter()
         .map(|&t| !is_exactly_degenerate(t))
         .collect();
-    let boxes: Vec<Aabb> = corners.iter().map(|&t| aabb(t)).collect();
+    let boxes: Vec<Aabb> = corners.par_iter().map(|&t| aabb(t)).collect();
     let grid = BoxGrid::build(&boxes, &[]);
+    // Each box's lowest cell: a pair's owner cell is the larger of theirs along each axis
+    // (`cell_of` is monotonic), with no division per pair.
+    let low_cells: Vec<[u32; 3]> = boxes
+        .par_iter()
+        .map(|b| std::array::from_fn(|k| grid.cell_of(b.0[k], k) as u32))
+        .collect();
+    let owner = |f: usize, g: usize| {
+        let (a, b) = (low_cells[f], low_cells[g]);
+        let k: [usize; 3] = std::array::from_fn(|i| a[i].max(b[i]) as usize);
+        (k[2] * grid.dims[1] + k[1]) * grid.dims[0] + k[0]
+    };
     let mut pairs: Vec<[u32; 2]> = (0..tris.len())
         .into_par_iter()
         .filter(|&f| valid[f])
@@ -337,7 +447,7 @@ pub fn self_intersections(mesh: &Mesh) -> Vec<[u32; 2]> {
                     if g <= f
                         || !valid[g]
                         || !boxes_overlap(&boxes[f], &boxes[g])
-                        || grid.owner_cell(&boxes[f], &boxes[g]) != c
+                        || owner(f, g) != c
                     {
                         continue;
                     }
@@ -368,13 +478,13 @@ impl CrossSearch {
         let corners = |m: &Mesh| -> Vec<[P; 3]> {
             let p = m.positions();
             m.triangles()
-                .iter()
+                .par_iter()
                 .map(|t| t.map(|v| p[v as usize]))
                 .collect()
         };
         let (ca, cb) = (corners(a), corners(b));
-        let boxes_a: Vec<Aabb> = ca.iter().map(|&t| aabb(t)).collect();
-        let boxes_b: Vec<Aabb> = cb.iter().map(|&t| aabb(t)).collect();
+        let boxes_a: Vec<Aabb> = ca.par_iter().map(|&t| aabb(t)).collect();
+        let boxes_b: Vec<Aabb> = cb.par_iter().map(|&t| aabb(t)).collect();
         let valid_b: Vec<bool> = cb.par_iter().map(|&t| !is_exactly_degenerate(t)).collect();
         let grid = BoxGrid::build(&boxes_b, &boxes_a);
         CrossSearch {

@@ -74,6 +74,83 @@ fn matches_the_separating_axis_test_on_random_integer_triangles() {
     assert!(hits[0] > 10_000 && hits[1] > 10_000, "{hits:?}");
 }
 
+/// Integer points of a plane: (i, j) on the coordinate plane z = 5 (whose orientations are
+/// settled before the exact predicate), or on the tilted plane spanned by (1, 2, 0) and
+/// (0, 1, 3) through (1, 1, 1) (whose are not).
+fn on_plane(tilted: bool, [i, j]: [i64; 2]) -> [i64; 3] {
+    if tilted {
+        [1 + i, 1 + 2 * i + j, 1 + 3 * j]
+    } else {
+        [i, j, 5]
+    }
+}
+
+#[test]
+fn coplanar_triangles_match_the_separating_axis_test() {
+    let mut rng = fastrand::Rng::with_seed(11);
+    let mut hits = [0usize; 2];
+    for tilted in [false, true] {
+        for span in [3, 5, 8] {
+            for _ in 0..10_000 {
+                let flat = |rng: &mut fastrand::Rng| loop {
+                    let t = [0; 3].map(|_| on_plane(tilted, [rng.i64(0..span), rng.i64(0..span)]));
+                    if !is_exactly_degenerate(t.map(|p| p.map(|x| x as f32))) {
+                        return t;
+                    }
+                };
+                let (t, u) = (flat(&mut rng), flat(&mut rng));
+                let expected = sat_intersect(t, u);
+                let f = |x: [[i64; 3]; 3]| x.map(|p| p.map(|c| c as f32));
+                assert_eq!(triangles_intersect(f(t), f(u)), expected, "{t:?} and {u:?}");
+                assert_eq!(triangles_intersect(f(u), f(t)), expected, "{u:?} and {t:?}");
+                hits[expected as usize] += 1;
+            }
+        }
+    }
+    assert!(hits[0] > 5_000 && hits[1] > 5_000, "{hits:?}");
+}
+
+/// Faces sharing one corner meet beyond it iff the side opposite it in one meets the other
+/// face: `faces_intersect`'s shortcuts (a side strictly off the other's plane, overlapping
+/// corners when coplanar) against that definition, on random integer faces, many coplanar.
+#[test]
+fn faces_sharing_a_corner_match_the_side_tests() {
+    let mut rng = fastrand::Rng::with_seed(13);
+    let mut hits = [0usize; 2];
+    for (tilted, span) in [(None, 3), (None, 5), (Some(false), 4), (Some(true), 4)] {
+        for _ in 0..20_000 {
+            let point = |rng: &mut fastrand::Rng| -> [f32; 3] {
+                let p = match tilted {
+                    None => [0; 3].map(|_| rng.i64(0..span)),
+                    Some(tilted) => on_plane(tilted, [rng.i64(0..span), rng.i64(0..span)]),
+                };
+                p.map(|x| x as f32)
+            };
+            let v = point(&mut rng);
+            let (a, b, c, d) = (
+                point(&mut rng),
+                point(&mut rng),
+                point(&mut rng),
+                point(&mut rng),
+            );
+            let (t, u) = ([v, a, b], [c, v, d]);
+            if is_exactly_degenerate(t) || is_exactly_degenerate(u) {
+                continue;
+            }
+            let expected = segment_meets_triangle(a, b, u) || segment_meets_triangle(c, d, t);
+            // Vertex 0 shared, the others distinct indices (positions may coincide).
+            assert_eq!(
+                faces_intersect([0, 1, 2], t, [3, 0, 4], u),
+                expected,
+                "{t:?} and {u:?}"
+            );
+            assert_eq!(faces_intersect([3, 0, 4], u, [0, 1, 2], t), expected);
+            hits[expected as usize] += 1;
+        }
+    }
+    assert!(hits[0] > 10_000 && hits[1] > 10_000, "{hits:?}");
+}
+
 #[test]
 fn coplanar_and_touching_cases_by_hand() {
     let t = [[0.0, 0.0, 0.0], [4.0, 0.0, 0.0], [0.0, 4.0, 0.0]];
