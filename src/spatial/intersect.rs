@@ -235,12 +235,14 @@ fn triangles_meet_flat(t: [P; 3], u: [P; 3], drop: usize) -> bool {
 /// `drop`: near v each triangle is its corner's wedge (under 180 degrees), and two such
 /// wedges overlap iff one holds a side of the other (exact).
 fn corners_overlap_flat(v: P, (a, b): (P, P), (c, d): (P, P), drop: usize) -> bool {
-    // Whether the ray from v through x lies in the closed wedge from v along p and q.
-    let holds = |p: P, q: P, x: P| {
-        let s = orient_flat(v, p, q, drop);
+    // Whether the ray from v through x lies in the closed wedge from v along p and q, whose
+    // turn from p to q is s.
+    let holds = |(p, q, s): (P, P, i8), x: P| {
         orient_flat(v, p, x, drop) * s >= 0 && orient_flat(v, x, q, drop) * s >= 0
     };
-    holds(a, b, c) || holds(a, b, d) || holds(c, d, a) || holds(c, d, b)
+    let t = (a, b, orient_flat(v, a, b, drop));
+    let u = (c, d, orient_flat(v, c, d, drop));
+    holds(t, c) || holds(t, d) || holds(u, a) || holds(u, b)
 }
 
 /// Faces of `mesh` whose corners are exactly collinear (including repeated indices).
