@@ -299,6 +299,10 @@ pub struct SmoothBench {
     pub hausdorff_s: f64,
     /// Point-to-surface queries per second within that measurement.
     pub hausdorff_queries_per_s: f64,
+    /// The exact self-intersection search over the Laplace-smoothed version, as the guard runs
+    /// it on every smoothed structure (s), and the pairs it found.
+    pub self_intersections_s: f64,
+    pub self_intersections: usize,
 }
 
 /// Laplace's time on one vertex numbering of the bench mesh.
@@ -519,6 +523,9 @@ pub fn smooth(triangles: usize, iterations: usize, repeat: usize) -> SmoothBench
     let (hausdorff_s, _) = best_of(repeat, || {
         crate::metrics::hausdorff_distance(&mesh, &smoothed)
     });
+    let (self_intersections_s, self_intersections) = best_of(repeat, || {
+        crate::spatial::intersect::self_intersections(&smoothed).len()
+    });
     SmoothBench {
         n_vertices: mesh.n_vertices(),
         n_triangles: mesh.n_triangles(),
@@ -533,6 +540,8 @@ pub fn smooth(triangles: usize, iterations: usize, repeat: usize) -> SmoothBench
         laplace_compute_bound_s,
         hausdorff_s,
         hausdorff_queries_per_s: (2 * mesh.n_vertices()) as f64 / hausdorff_s,
+        self_intersections_s,
+        self_intersections,
     }
 }
 

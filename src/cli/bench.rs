@@ -183,6 +183,10 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
                 r.hausdorff_s,
                 r.hausdorff_queries_per_s / 1e6
             );
+            println!(
+                "  self-intersections of the smoothed copy  {:.4} s  ({} pairs; the guard's check)",
+                r.self_intersections_s, r.self_intersections
+            );
         }
         Args::Extract {
             dir,

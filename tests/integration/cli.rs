@@ -134,6 +134,8 @@ fn bench_smooth_reports_both_bounds() {
         );
     }
     assert!(f("laplace_bound_s") > 0.0 && f("passes_one_thread_s") > 0.0);
+    // Two Laplace iterations leave the blob without a fold.
+    assert!(f("self_intersections_s") > 0.0 && json["self_intersections"] == 0);
     // The compute bound is the in-cache rate on every thread, for this mesh's updates.
     let updates = f("n_vertices") * f("iterations");
     let expected = updates / (f("in_cache_updates_per_s") * f("threads"));
