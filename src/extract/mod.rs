@@ -23,7 +23,7 @@ pub mod thin;
 
 use cell::{Template, KIND_APEX};
 
-use crate::mesh::Mesh;
+use crate::mesh::{is_valid_coordinate, Mesh};
 use crate::volume::LabelVolume;
 use rustc_hash::FxHashMap;
 
@@ -627,12 +627,13 @@ fn assemble(
                 }));
             }
             // Indices are in range by construction; only the coordinates are checked.
-            let finite = positions.iter().flatten().all(|x| x.is_finite());
+            let valid = positions.iter().flatten().all(|&x| is_valid_coordinate(x));
             for v in used {
                 local[v as usize] = u32::MAX;
             }
-            // A grid that maps voxels beyond f32's range leaves the surface empty.
-            let mesh = if finite {
+            // A grid that maps voxels beyond +-1e7 mm leaves the surface empty (readers refuse
+            // such grids with a message first).
+            let mesh = if valid {
                 Mesh::from_checked_parts(positions, triangles)
             } else {
                 Mesh::new(positions, triangles).unwrap_or_default()

@@ -143,10 +143,24 @@ pub enum ReadErrorKind {
     },
     #[error("{place}: coordinate is not a finite number ({value})")]
     NonFinite { place: String, value: f64 },
+    #[error("{place}: coordinate {} mm lies beyond +-1e7 mm (10 km): not a surface in millimetres (a corrupt file, or one in other units)", crate::units::readable(*value))]
+    CoordinateOutOfRange { place: String, value: f64 },
     #[error("the mesh has no vertices")]
     NoVertices,
     #[error("{0}")]
     Mesh(#[from] MeshError),
+}
+
+impl ReadErrorKind {
+    /// The error for a coordinate `value` (as the file holds it) that is not
+    /// [`is_valid_coordinate`](crate::mesh::is_valid_coordinate) at `place`.
+    pub(crate) fn bad_coordinate(place: String, value: f64) -> ReadErrorKind {
+        if value.is_finite() {
+            ReadErrorKind::CoordinateOutOfRange { place, value }
+        } else {
+            ReadErrorKind::NonFinite { place, value }
+        }
+    }
 }
 
 /// What a format decoder returns before the path is attached.

@@ -4,7 +4,7 @@
 
 use crate::io::text::{parse_f64, parse_i64, show, TextCursor};
 use crate::io::{DecodeResult, FaceStats, LoadedMesh, MeshMeta, ReadErrorKind, SourceFormat};
-use crate::mesh::{check_size, Mesh};
+use crate::mesh::{check_size, is_valid_coordinate, Mesh};
 
 /// Decodes an OBJ file.
 pub(crate) fn decode(bytes: &[u8]) -> DecodeResult {
@@ -35,11 +35,11 @@ pub(crate) fn decode(bytes: &[u8]) -> DecodeResult {
                         .ok_or_else(|| malformed(format!("{:?} is not a number", show(t))))?;
                 }
                 let p = xyz.map(|v| v as f32);
-                if let Some(k) = (0..3).find(|&k| !p[k].is_finite()) {
-                    return Err(ReadErrorKind::NonFinite {
-                        place: format!("line {line}"),
-                        value: xyz[k],
-                    });
+                if let Some(k) = (0..3).find(|&k| !is_valid_coordinate(p[k])) {
+                    return Err(ReadErrorKind::bad_coordinate(
+                        format!("line {line}"),
+                        xyz[k],
+                    ));
                 }
                 positions.push(p);
                 // Optional w and vertex colours follow; they are ignored.

@@ -9,7 +9,7 @@ use crate::io::{
     SourceFormat, WriteError,
 };
 use crate::mesh::geometry::{normalize, triangle_area_vector};
-use crate::mesh::{check_size, Mesh};
+use crate::mesh::{check_size, is_valid_coordinate, Mesh};
 use rustc_hash::FxHashMap;
 use std::io::Write;
 use std::path::Path;
@@ -116,16 +116,14 @@ fn decode_binary(bytes: &[u8]) -> DecodeResult {
     };
     let (positions, triangles) = super::weld::weld_triangles(n, corner).map_err(|c| {
         let p = corner(c);
-        let a = (0..3).find(|&a| !p[a].is_finite()).unwrap_or(0);
-        ReadErrorKind::NonFinite {
-            place: format!(
-                "triangle {} corner {} (byte {})",
-                c / 3,
-                c % 3,
-                offset(c) + 4 * a
-            ),
-            value: p[a] as f64,
-        }
+        let a = (0..3).find(|&a| !is_valid_coordinate(p[a])).unwrap_or(0);
+        let place = format!(
+            "triangle {} corner {} (byte {})",
+            c / 3,
+            c % 3,
+            offset(c) + 4 * a
+        );
+        ReadErrorKind::bad_coordinate(place, p[a] as f64)
     })?;
     Ok(LoadedMesh {
         mesh: Mesh::from_checked_parts(positions, triangles),
@@ -191,11 +189,11 @@ fn decode_ascii(bytes: &[u8]) -> DecodeResult {
                         Some(b"vertex") => {
                             let xyz = [number(&mut c)?, number(&mut c)?, number(&mut c)?];
                             let p = xyz.map(|v| v as f32);
-                            if let Some(a) = (0..3).find(|&a| !p[a].is_finite()) {
-                                return Err(ReadErrorKind::NonFinite {
-                                    place: format!("line {}", c.line()),
-                                    value: xyz[a],
-                                });
+                            if let Some(a) = (0..3).find(|&a| !is_valid_coordinate(p[a])) {
+                                return Err(ReadErrorKind::bad_coordinate(
+                                    format!("line {}", c.line()),
+                                    xyz[a],
+                                ));
                             }
                             polygon.push(welder.vertex(p));
                         }

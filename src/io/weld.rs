@@ -6,7 +6,8 @@
 //! 1. Each chunk of the file welds its own corners with a hash map that stays in cache. Files
 //!    list a vertex's triangles close together, so a chunk's distinct coordinates (its
 //!    *entries*) are about a fifth of its corners (3.2 M entries for 15 M corners on the 5 M
-//!    triangle phantom). The same pass finds the first non-finite coordinate.
+//!    triangle phantom). The same pass finds the first coordinate that is not valid (NaN,
+//!    infinite, beyond +-1e7 mm).
 //! 2. Entries go to shards by a hash of their coordinates (each chunk keeping its own list per
 //!    shard, in its order). Each shard numbers its distinct coordinates with a small map, in
 //!    chunk order, so a vertex's first entry holds its first corner in the file.
@@ -14,6 +15,7 @@
 //!    with per-word counts), and a last walk per chunk turns its corners' local numbers into
 //!    vertex numbers.
 
+use crate::mesh::is_valid_coordinate;
 use crate::parallel::split_lengths;
 use rayon::prelude::*;
 use rustc_hash::FxHashMap;
@@ -73,8 +75,9 @@ pub(crate) type Welded = (Vec<[f32; 3]>, Vec<[u32; 3]>);
 
 /// Welds `n_triangles` triangles (`corner(c)` gives the coordinates of corner c, corner
 /// `3 t + k` being corner k of triangle t): the vertex positions in order of first appearance
-/// and each triangle's vertices. `Err(c)` names the first corner with a NaN or infinite
-/// coordinate. `3 n_triangles` must fit in u32.
+/// and each triangle's vertices. `Err(c)` names the first corner with a coordinate that is not
+/// [valid](crate::mesh::is_valid_coordinate) (NaN, infinite, or beyond +-1e7 mm).
+/// `3 n_triangles` must fit in u32.
 pub fn weld_triangles(
     n_triangles: usize,
     corner: impl Fn(usize) -> [f32; 3] + Sync,
@@ -214,7 +217,7 @@ pub fn weld_triangles(
 
 /// Step 1 for the chunk whose first corner is `first`: writes each corner's local number
 /// (order of first appearance in the chunk) into `out` and returns the chunk's entries, or
-/// the first corner with a non-finite coordinate.
+/// the first corner with a coordinate that is not valid.
 fn weld_chunk(
     seen: &mut FxHashMap<Key, u32>,
     first: usize,
@@ -229,7 +232,7 @@ fn weld_chunk(
         for (k, local) in tri.iter_mut().enumerate() {
             let c = first + 3 * t + k;
             let p = corner(c);
-            finite &= p.iter().all(|v| v.is_finite());
+            finite &= p.iter().all(|&v| is_valid_coordinate(v));
             let next = entry_first.len() as u32;
             *local = *seen.entry(Key::of(p)).or_insert(next);
             if *local == next {
@@ -240,7 +243,7 @@ fn weld_chunk(
     }
     if !finite {
         let bad = (first..first + 3 * out.len())
-            .find(|&c| !corner(c).iter().all(|v| v.is_finite()))
+            .find(|&c| !corner(c).iter().all(|&v| is_valid_coordinate(v)))
             .unwrap_or(first);
         return Err(bad);
     }

@@ -411,10 +411,12 @@ fn process_structure(
             .as_ref()
             .map_err(|e| format!("reference {r:?} could not be read: {e}"))?;
         // References are measured in this structure's coordinates.
-        let rm = match rf.place.mesh_in(&rm.mesh, &place) {
-            Some(m) => std::borrow::Cow::Owned(m),
-            None => std::borrow::Cow::Borrowed(&rm.mesh),
-        };
+        let moved = rf.place.checked_mesh_in(&rm.mesh, &place);
+        let rm =
+            match moved.map_err(|e| format!("reference {r:?} in this structure's grid: {e}"))? {
+                Some(m) => std::borrow::Cow::Owned(m),
+                None => std::borrow::Cow::Borrowed(&rm.mesh),
+            };
         reference_meshes.push((r.clone(), rm));
     }
     if settings.skip {

@@ -8,7 +8,7 @@ use super::plan::Plan;
 use crate::extract::constrained::{LabelSmoothing, Surface};
 use crate::extract::report::Extraction;
 use crate::io::{with_file_bytes, LoadedMesh, MeshMeta, SourceFormat};
-use crate::mesh::Mesh;
+use crate::mesh::{Mesh, MeshError};
 pub use crate::report::label_map::{LabelEntry, LabelMapInfo, LabelSource};
 use crate::volume::grid::GridFrame;
 use crate::volume::LabelMap;
@@ -47,10 +47,27 @@ pub enum Place {
 
 impl Place {
     /// Positions of `mesh` (in `self`) expressed in `to`, with triangles turned so that normals
-    /// keep pointing the same way when the change mirrors; `None` when the places agree.
+    /// keep pointing the same way when the change mirrors; `None` when the places agree. For
+    /// a surface of a label map going to world mm (or back): its grid lies within
+    /// [`Grid::check_extent`](crate::volume::grid::Grid::check_extent)'s 1 km, so its
+    /// coordinates stay valid in either place and need no second check.
     pub fn mesh_in(&self, mesh: &Mesh, to: &Place) -> Option<Mesh> {
-        // A rigid motion of finite positions stays finite, and the triangles keep their
-        // (valid) indices: the mesh needs no second check.
+        self.moved(mesh, to, Mesh::from_checked_parts)
+    }
+
+    /// [`Place::mesh_in`] for any mesh (a mesh file measured in a grid's frame, which a far
+    /// file could put beyond +-1e7 mm): the moved coordinates checked.
+    pub fn checked_mesh_in(&self, mesh: &Mesh, to: &Place) -> Result<Option<Mesh>, MeshError> {
+        self.moved(mesh, to, Mesh::new).transpose()
+    }
+
+    /// The positions and triangles of [`Place::mesh_in`], made into a mesh by `make`.
+    fn moved<T>(
+        &self,
+        mesh: &Mesh,
+        to: &Place,
+        make: impl FnOnce(Vec<[f32; 3]>, Vec<[u32; 3]>) -> T,
+    ) -> Option<T> {
         if self.same(to) {
             return None;
         }
@@ -68,7 +85,7 @@ impl Place {
             .iter()
             .map(|t| if mirrored { [t[0], t[2], t[1]] } else { *t })
             .collect();
-        Some(Mesh::from_checked_parts(positions, triangles))
+        Some(make(positions, triangles))
     }
 
     fn same(&self, other: &Place) -> bool {

@@ -1,8 +1,10 @@
 //! The in-memory triangle mesh: flat `[f32; 3]` positions and `[u32; 3]` triangles.
 //!
-//! A `Mesh` is validated on construction (finite coordinates, indices in range), so every
-//! algorithm downstream can index without checks. Topology is built once, separately
-//! ([`Topology::build`]), because many callers (writers, converters) never need it.
+//! A `Mesh` is validated on construction (coordinates finite and within
+//! [`MAX_COORDINATE_MM`], indices in range), so every algorithm downstream can index without
+//! checks and compute lengths, areas and sums of coordinates without overflow. Topology is
+//! built once, separately ([`Topology::build`]), because many callers (writers, converters)
+//! never need it.
 
 pub mod face_neighbours;
 pub mod geometry;
@@ -13,8 +15,22 @@ pub mod umbrella;
 
 pub use topology::Topology;
 
+use crate::units::readable;
 use std::sync::Arc;
 use thiserror::Error;
+
+/// Largest coordinate magnitude a mesh may hold (mm): 10 km. Squares and products of
+/// coordinates (lengths, areas, normals, sums over neighbours) stay far inside f32's range
+/// below it, while near f32's limit (3.4e38) one sum of two coordinates overflows. No surface
+/// of a body or a specimen lies that far from its origin: beyond it is a corrupt file, or one
+/// in other units.
+pub const MAX_COORDINATE_MM: f32 = 1e7;
+
+/// Whether `x` may be a mesh coordinate: finite and within +-[`MAX_COORDINATE_MM`].
+#[inline]
+pub fn is_valid_coordinate(x: f32) -> bool {
+    x.abs() <= MAX_COORDINATE_MM
+}
 
 /// Why a set of positions and triangles is not a valid mesh.
 #[derive(Debug, Clone, PartialEq, Error)]
@@ -28,8 +44,8 @@ pub enum MeshError {
         index: u32,
         n_vertices: usize,
     },
-    /// A vertex coordinate is NaN or infinite.
-    #[error("vertex {vertex} has a non-finite coordinate ({x}, {y}, {z})")]
+    /// A vertex coordinate is NaN, infinite, or beyond +-[`MAX_COORDINATE_MM`].
+    #[error("vertex {vertex} has a coordinate that is not a finite number within +-1e7 mm ({}, {}, {})", readable(f64::from(*x)), readable(f64::from(*y)), readable(f64::from(*z)))]
     NonFinite {
         vertex: usize,
         x: f32,
@@ -61,7 +77,7 @@ impl Mesh {
         check_size(positions.len(), triangles.len())?;
         if let Some(vertex) = positions
             .iter()
-            .position(|p| !(p[0].is_finite() && p[1].is_finite() && p[2].is_finite()))
+            .position(|p| !p.iter().all(|&x| is_valid_coordinate(x)))
         {
             let [x, y, z] = positions[vertex];
             return Err(MeshError::NonFinite { vertex, x, y, z });
@@ -109,11 +125,11 @@ impl Mesh {
         Arc::clone(&self.triangles)
     }
 
-    /// The same faces with other positions (one per vertex, finite, as the caller has made
-    /// sure): the faces are shared, not copied.
+    /// The same faces with other positions (one per vertex, valid coordinates, as the caller
+    /// has made sure): the faces are shared, not copied.
     pub(crate) fn with_checked_positions(&self, positions: Vec<[f32; 3]>) -> Mesh {
         debug_assert_eq!(positions.len(), self.positions.len());
-        debug_assert!(positions.iter().flatten().all(|x| x.is_finite()));
+        debug_assert!(positions.iter().flatten().all(|&x| is_valid_coordinate(x)));
         Self {
             positions,
             triangles: Arc::clone(&self.triangles),

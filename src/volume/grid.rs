@@ -4,6 +4,11 @@
 
 use serde::Serialize;
 
+/// How far from the world origin a label map's voxels may lie (mm): 1 km. A scanner's grid
+/// lies within a metre or two of it; a surface of a grid within this bound stays within
+/// [`MAX_COORDINATE_MM`](crate::mesh::MAX_COORDINATE_MM) in world mm and in the grid's frame.
+pub const MAX_GRID_EXTENT_MM: f64 = 1e6;
+
 /// Patient coordinate convention of world millimetres.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "UPPERCASE")]
@@ -72,6 +77,32 @@ impl Grid {
             return Err(format!(
                 "the direction matrix is singular (determinant {})",
                 crate::units::readable(det)
+            ));
+        }
+        Ok(())
+    }
+
+    /// Checks that a volume of `dims` voxels on this grid lies within +-[`MAX_GRID_EXTENT_MM`]
+    /// of the world origin (with a voxel's margin around it), so that its surfaces, in world
+    /// mm or in the grid's own frame, hold valid mesh coordinates
+    /// ([`is_valid_coordinate`](crate::mesh::is_valid_coordinate)).
+    pub fn check_extent(&self, dims: [usize; 3]) -> Result<(), String> {
+        let far = (0..8)
+            .flat_map(|c: usize| {
+                let corner = [0, 1, 2].map(|k| {
+                    if c >> k & 1 == 0 {
+                        -1.0
+                    } else {
+                        dims[k] as f64
+                    }
+                });
+                self.world(corner)
+            })
+            .fold(0.0f64, |m, x| m.max(x.abs()));
+        if far.is_nan() || far > MAX_GRID_EXTENT_MM {
+            return Err(format!(
+                "the grid places voxels {} mm from the origin, beyond +-1e6 mm (1 km): not a scan in millimetres (a corrupt header, or one in other units)",
+                crate::units::readable(far)
             ));
         }
         Ok(())

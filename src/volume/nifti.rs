@@ -191,6 +191,7 @@ fn decode(
     let dims = [d(1), d(2), d(3)];
     let (grid, warning) = grid_of(h);
     grid.check()?;
+    grid.check_extent(dims)?;
     let t = voxel_type(h.datatype)?;
     let volume = LabelVolume::from_raw(dims, grid, data, t, big_endian(h), (0, 1), counted)?;
     Ok(LabelMap {

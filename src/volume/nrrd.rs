@@ -206,6 +206,7 @@ pub fn read(path: &Path) -> Result<LabelMap, String> {
         }
     };
     grid.check()?;
+    grid.check_extent(dims.map(|d| d as usize))?;
     let skip: u64 = match fields.get("byte skip") {
         None => 0,
         Some(s) => s

@@ -331,13 +331,120 @@ fn lying_headers_and_bad_values() {
             }
         }
     }
-    // Double coordinates that overflow f32.
+    // Double coordinates that overflow f32: finite, but far beyond +-1e7 mm.
     let mut big =
         header("element vertex 1\nproperty double x\nproperty double y\nproperty double z\n");
     for v in [1e300f64, 0.0, 0.0] {
         big.extend_from_slice(&v.to_le_bytes());
     }
-    assert!(expect_err(&big, "ply", "f64 overflow").contains("not a finite"));
+    let msg = expect_err(&big, "ply", "f64 overflow");
+    assert!(
+        msg.contains("vertex 0") && msg.contains("1.000e300 mm lies beyond +-1e7 mm"),
+        "{msg}"
+    );
+}
+
+/// A tetrahedron with vertex 0 at x = `x`, in each format a reader decodes: (name, extension,
+/// bytes, place the error must name).
+fn tetrahedra_with_x(x: f64) -> Vec<(&'static str, &'static str, Vec<u8>, &'static str)> {
+    let p = [
+        [x, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, 0.0, 1.0],
+    ];
+    let faces = [[0u32, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]];
+    let mut ascii_ply = String::from(
+        "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nelement face 4\nproperty list uchar int vertex_indices\nend_header\n",
+    );
+    let mut obj = String::new();
+    let mut stl_ascii = String::from("solid t\n");
+    for q in p {
+        ascii_ply += &format!("{:e} {} {}\n", q[0], q[1], q[2]);
+        obj += &format!("v {:e} {} {}\n", q[0], q[1], q[2]);
+    }
+    let mut stl = vec![0u8; 80];
+    stl.extend_from_slice(&4u32.to_le_bytes());
+    for t in faces {
+        ascii_ply += &format!("3 {} {} {}\n", t[0], t[1], t[2]);
+        obj += &format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1);
+        stl_ascii += "facet normal 0 0 1\nouter loop\n";
+        stl.extend_from_slice(&[0u8; 12]);
+        for v in t {
+            let q = p[v as usize];
+            stl_ascii += &format!("vertex {:e} {} {}\n", q[0], q[1], q[2]);
+            for c in q {
+                stl.extend_from_slice(&(c as f32).to_le_bytes());
+            }
+        }
+        stl_ascii += "endloop\nendfacet\n";
+        stl.extend_from_slice(&[0u8; 2]);
+    }
+    stl_ascii += "endsolid t\n";
+    let binary_ply = |ty: &str| {
+        let mut b = header(&format!(
+            "element vertex 4\nproperty {ty} x\nproperty {ty} y\nproperty {ty} z\nelement face 4\nproperty list uchar int vertex_indices\n"
+        ));
+        for q in p {
+            for c in q {
+                match ty {
+                    "float" => b.extend_from_slice(&(c as f32).to_le_bytes()),
+                    _ => b.extend_from_slice(&c.to_le_bytes()),
+                }
+            }
+        }
+        for t in faces {
+            b.push(3);
+            for v in t {
+                b.extend_from_slice(&(v as i32).to_le_bytes());
+            }
+        }
+        b
+    };
+    vec![
+        ("ascii ply", "ply", ascii_ply.into_bytes(), "vertex 0"),
+        ("binary ply", "ply", binary_ply("float"), "vertex 0"),
+        (
+            "binary ply of doubles",
+            "ply",
+            binary_ply("double"),
+            "vertex 0",
+        ),
+        ("binary stl", "stl", stl, "triangle 0 corner 0"),
+        ("ascii stl", "stl", stl_ascii.into_bytes(), "line 4"),
+        ("obj", "obj", obj.into_bytes(), "line 1"),
+    ]
+}
+
+/// Finite coordinates near f32's limit overflow the first sum of two (a smoothing step, an
+/// edge vector): every reader refuses coordinates beyond +-1e7 mm and names where they are,
+/// and accepts them up to that bound.
+#[test]
+fn coordinates_beyond_ten_kilometres_are_refused() {
+    let _guard = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    for x in [3.39e38, -2e7, 1.0000001e7] {
+        for (name, ext, bytes, place) in tetrahedra_with_x(x) {
+            let msg = expect_err(&bytes, ext, name);
+            assert!(
+                msg.contains(place) && msg.contains("beyond +-1e7 mm"),
+                "{name}, x = {x}: {msg}"
+            );
+        }
+    }
+    for x in [9.99e6, -1e7] {
+        for (name, ext, bytes, _) in tetrahedra_with_x(x) {
+            let loaded = check(&bytes, ext).unwrap_or_else(|e| panic!("{name}, x = {x}: {e}"));
+            assert_eq!(loaded.mesh.positions()[0][0], x as f32, "{name}");
+        }
+    }
+    // Non-finite values keep their own message.
+    for (name, ext, bytes, place) in tetrahedra_with_x(f64::INFINITY) {
+        let msg = expect_err(&bytes, ext, name);
+        assert!(
+            msg.contains(place) && msg.contains("not a finite"),
+            "{name}: {msg}"
+        );
+    }
 }
 
 #[test]

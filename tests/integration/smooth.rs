@@ -566,3 +566,37 @@ fn weighted_hc_changes_the_volume_no_more_than_uniform_hc() {
         }
     }
 }
+
+/// A mesh whose coordinates reach the bound of valid coordinates (+-1e7 mm) goes through
+/// the context analysis (with its low-pass copy), every smoother and the guard's measures
+/// with finite results: the bound leaves room for every sum and product they take.
+#[test]
+fn a_mesh_at_the_coordinate_bound_smooths_to_finite_values() {
+    let case = named_case("cap-cylinder", &PhantomOptions::default()).unwrap();
+    let m = &case.meshes[0].1;
+    let hi = m
+        .positions()
+        .iter()
+        .flatten()
+        .fold(0.0f32, |a, &x| a.max(x.abs()));
+    let scale = 0.999 * destair::mesh::MAX_COORDINATE_MM / hi;
+    let big: Vec<[f32; 3]> = m.positions().iter().map(|p| p.map(|x| x * scale)).collect();
+    let big = Mesh::new(big, m.triangles().to_vec()).unwrap();
+    let topology = Topology::build(&big);
+    let params = destair::weights::context::ContextParams::default();
+    let context = destair::weights::context::context_weights(&big, &topology, &params, &[]);
+    assert!(context.weights.as_slice().iter().all(|w| w.is_finite()));
+    assert!(
+        !context.caps.caps.is_empty(),
+        "the cylinder's caps are found at any scale"
+    );
+    let voxel = [scale, scale, 2.0 * scale];
+    for method in all_methods(voxel) {
+        let (p, _) = smooth(&big, &topology, &method, 10, &context.weights, &[]);
+        assert!(p.iter().flatten().all(|x| x.is_finite()), "{method:?}");
+        let after = Mesh::new(p, big.triangles().to_vec()).unwrap();
+        assert!(destair::metrics::hausdorff_distance(&big, &after).is_finite());
+        assert!(average_normal_curvature(&after, &topology).is_finite());
+        let _ = destair::spatial::intersect::self_intersections(&after);
+    }
+}

@@ -258,6 +258,51 @@ fn bad_headers_name_the_file_and_the_problem() {
     assert!(read_label_map(&path, Space::Lps).is_err());
 }
 
+/// Grids that put voxels beyond +-1e6 mm (1 km) are refused with their reach named: their
+/// surfaces would hold coordinates near f32's limit, which the first sum overflows. Grids
+/// within it read.
+#[test]
+fn grids_reaching_beyond_a_kilometre_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("far.nrrd");
+    let nrrd = |origin: &str, z: &str| {
+        let mut b = format!("NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nspace: LPS\nspace directions: (1,0,0) (0,1,0) (0,0,{z})\nspace origin: {origin}\nencoding: raw\n\n").into_bytes();
+        b.extend([1u8; 8]);
+        b
+    };
+    for (origin, z) in [("(1e7,0,0)", "2"), ("(0,0,0)", "1e9"), ("(0,-3e38,0)", "2")] {
+        std::fs::write(&path, nrrd(origin, z)).unwrap();
+        let err = read_label_map(&path, Space::Lps).unwrap_err().to_string();
+        assert!(
+            err.contains("far.nrrd") && err.contains("beyond +-1e6 mm"),
+            "{origin} {z}: {err}"
+        );
+    }
+    std::fs::write(&path, nrrd("(9e5,0,-9e5)", "2")).unwrap();
+    assert!(read_label_map(&path, Space::Lps).is_ok());
+    let volume = |origin: [f64; 3]| {
+        let grid = Grid::axis_aligned([1.0, 1.0, 2.0], origin, Space::Ras);
+        LabelVolume::from_values([3, 3, 3], grid, (0..27).map(|i| (i % 2) as i64)).unwrap()
+    };
+    let path = dir.path().join("far.nii");
+    std::fs::write(
+        &path,
+        nifti::encode(&volume([0.0, 2e6, 0.0]), false).unwrap(),
+    )
+    .unwrap();
+    let err = read_label_map(&path, Space::Lps).unwrap_err().to_string();
+    assert!(
+        err.contains("far.nii") && err.contains("beyond +-1e6 mm"),
+        "{err}"
+    );
+    std::fs::write(
+        &path,
+        nifti::encode(&volume([0.0, -9e5, 0.0]), false).unwrap(),
+    )
+    .unwrap();
+    assert!(read_label_map(&path, Space::Lps).is_ok());
+}
+
 /// Truncations at every offset and random byte mutations: an error or a volume, never a panic.
 #[test]
 fn mutated_label_maps_never_panic() {

@@ -22,6 +22,20 @@ fn rejects_bad_index_and_nan() {
     ));
 }
 
+#[test]
+fn coordinates_beyond_ten_kilometres_are_not_a_mesh() {
+    let at = |x: f32| vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, x, 0.0]];
+    for x in [1e7, -1e7, 9.99e6] {
+        assert!(Mesh::new(at(x), vec![[0, 1, 2]]).is_ok(), "{x}");
+    }
+    for x in [1.0000001e7, -2e7, f32::MAX, f32::INFINITY] {
+        let err = Mesh::new(at(x), vec![[0, 1, 2]]).unwrap_err();
+        assert!(matches!(err, MeshError::NonFinite { vertex: 2, .. }), "{x}");
+        assert!(err.to_string().contains("within +-1e7 mm"), "{err}");
+    }
+    assert!(is_valid_coordinate(MAX_COORDINATE_MM) && !is_valid_coordinate(f32::NAN));
+}
+
 /// Copies of a mesh share its faces: moving one copy's vertices or taking it apart leaves the
 /// other as it was.
 #[test]

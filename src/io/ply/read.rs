@@ -10,7 +10,7 @@ use crate::io::{
     DecodeResult, FaceStats, LoadedMesh, MeshMeta, ReadErrorKind, ReadOptions, SourceFormat,
     VertexProperty,
 };
-use crate::mesh::{check_size, Mesh};
+use crate::mesh::{check_size, is_valid_coordinate, Mesh};
 use rayon::prelude::*;
 
 /// Rows per parallel chunk in the fixed-stride decoders.
@@ -394,7 +394,7 @@ fn fixed_vertices(
                     } else {
                         read_scalar(rows, o, types[k], big_endian) as f32
                     };
-                    if !v.is_finite() {
+                    if !is_valid_coordinate(v) {
                         let exact = read_scalar(rows, o, types[k], big_endian);
                         return Some((first + i, o, exact));
                     }
@@ -405,10 +405,10 @@ fn fixed_vertices(
         })
         .min_by_key(|&(row, _, _)| row);
     if let Some((row, o, value)) = bad {
-        return Err(ReadErrorKind::NonFinite {
-            place: format!("vertex {} (byte {})", row, file_offset + pos + o),
+        return Err(ReadErrorKind::bad_coordinate(
+            format!("vertex {} (byte {})", row, file_offset + pos + o),
             value,
-        });
+        ));
     }
     out.positions = positions;
     for (j, off, t) in extras {
@@ -724,11 +724,8 @@ fn decode_rows<S: RowSource>(
         src.end_row().map_err(|err| fail(src, err))?;
         if is_vertex {
             let p = xyz.map(|v| v as f32);
-            if let Some(k) = (0..3).find(|&k| !p[k].is_finite()) {
-                return Err(ReadErrorKind::NonFinite {
-                    place: place(src),
-                    value: xyz[k],
-                });
+            if let Some(k) = (0..3).find(|&k| !is_valid_coordinate(p[k])) {
+                return Err(ReadErrorKind::bad_coordinate(place(src), xyz[k]));
             }
             out.positions.push(p);
         }
