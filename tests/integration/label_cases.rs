@@ -324,6 +324,55 @@ references = ["vein"]
     assert!(!tmp.path().join("out/a/label_7.ply").exists());
 }
 
+/// A reference mesh file measured in a label structure's grid frame is checked there: one
+/// 10 km away (valid in world mm, beyond +-1e7 mm in the frame of a grid 900 m off the
+/// origin) fails the structure with the reason, not with invalid coordinates.
+#[test]
+fn a_reference_beyond_the_coordinate_bound_in_a_grids_frame_fails_its_structure() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut volume = mirrored_volume();
+    // RAS x = 900 m is LPS x = -900 m, where the cohort (LPS) reads the probe at +9500 m.
+    volume.grid.origin = [9e5, -10.0, 5.0];
+    write(
+        &tmp.path().join("cases/far/seg.nii.gz"),
+        &nifti::encode(&volume, true).unwrap(),
+    );
+    let x = 9.5e6f32;
+    let tetrahedron = destair::Mesh::new(
+        vec![
+            [x, 0.0, 0.0],
+            [x + 1.0, 0.0, 0.0],
+            [x, 1.0, 0.0],
+            [x, 0.0, 1.0],
+        ],
+        vec![[0, 2, 1], [0, 1, 3], [1, 2, 3], [0, 3, 2]],
+    )
+    .unwrap();
+    let ply = destair::io::ply::encode_ply(&tetrahedron, &Default::default(), &[]).unwrap();
+    write(&tmp.path().join("cases/far/probe.ply"), &ply);
+    let text = concat!(
+        head!(),
+        r#"[defaults]
+method = "laplace"
+iterations = 3
+[[structure]]
+pattern = "tumor"
+references = ["probe"]
+"#
+    );
+    let cfg = config(tmp.path(), text);
+    let out = destair(&["run", cfg.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(3), "{}", stderr(&out));
+    let r = report(tmp.path(), "far");
+    let tumor = structure(&r, "tumor").to_string();
+    assert!(
+        tumor.contains("reference \\\"probe\\\" in this structure's grid")
+            && tumor.contains("within +-1e7 mm"),
+        "{tumor}"
+    );
+    assert_eq!(structure(&r, "vein")["status"], "ok", "{r}");
+}
+
 #[test]
 fn clashes_images_and_corrupt_label_maps_fail_their_case_only() {
     let tmp = tempfile::tempdir().unwrap();
