@@ -1,6 +1,6 @@
 //! Any bytes as a mesh file: decoding must answer with a mesh or an error, never panic; a
-//! mesh that decodes goes through what `smooth` and the guard do to it, and its PLY encoding
-//! must decode to the same mesh, bit for bit.
+//! mesh that decodes goes through what `smooth` (with the smoother the first byte picks) and
+//! the guard do to it, and its PLY encoding must decode to the same mesh, bit for bit.
 #![no_main]
 use destair::io::{decode_mesh, ReadOptions};
 use libfuzzer_sys::fuzz_target;
@@ -32,11 +32,14 @@ fuzz_target!(|data: &[u8]| {
     let topology = destair::Topology::build(mesh);
     let params = destair::weights::context::ContextParams::default();
     let context = destair::weights::context::context_weights(mesh, &topology, &params, &[]);
-    let method = destair::smooth::Method::Hc {
-        lambda: 0.5,
-        alpha: 0.0,
-        beta: 0.5,
-    };
+    // The voxel size as `smooth` finds it (1 mm where the mesh does not tell), and the
+    // smoother the first byte's high bits pick.
+    let voxel = destair::analysis::voxel_size::voxel_size(mesh, &topology)
+        .spacing()
+        .map_or([1.0; 3], |s| s.map(|x| x as f32));
+    use destair::smooth::MethodKind::*;
+    let kinds = [Hc, Laplace, Taubin, Mcf, Npc, CellSize, CellEdge, Diamond];
+    let method = kinds[(which >> 3) as usize % 8].build(&Default::default(), voxel);
     let fixed = destair::smooth::boundary_vertices(&topology);
     let (smoothed, _) =
         destair::smooth::smooth(mesh, &topology, &method, 5, &context.weights, &fixed);
