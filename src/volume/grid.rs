@@ -98,8 +98,11 @@ impl Grid {
                 });
                 self.world(corner)
             })
-            .fold(0.0f64, |m, x| m.max(x.abs()));
-        if far.is_nan() || far > MAX_GRID_EXTENT_MM {
+            // NaN (huge steps of both signs in one row) counts as infinitely far: `max`
+            // alone would pass over it.
+            .map(|x| if x.is_nan() { f64::INFINITY } else { x.abs() })
+            .fold(0.0f64, f64::max);
+        if far > MAX_GRID_EXTENT_MM {
             return Err(format!(
                 "the grid places voxels {} mm from the origin, beyond +-1e6 mm (1 km): not a scan in millimetres (a corrupt header, or one in other units)",
                 crate::units::readable(far)

@@ -345,7 +345,8 @@ fn lying_headers_and_bad_values() {
 }
 
 /// A tetrahedron with vertex 0 at x = `x`, in each format a reader decodes: (name, extension,
-/// bytes, place the error must name).
+/// bytes, place the error must name). Written by hand: the writers take a `Mesh`, which cannot
+/// hold the invalid coordinates these files must carry.
 fn tetrahedra_with_x(x: f64) -> Vec<(&'static str, &'static str, Vec<u8>, &'static str)> {
     let p = [
         [x, 0.0, 0.0],
