@@ -6,6 +6,7 @@
 
 pub mod atomic;
 pub mod identity;
+pub mod mapped;
 pub mod obj;
 pub mod ply;
 pub mod stl;
@@ -15,6 +16,7 @@ pub mod weld;
 
 pub use atomic::{remove_stale_temp_files, write_atomically};
 pub use identity::{check_regular_file, file_id, same_file, ProtectedFiles};
+pub use mapped::MappedFile;
 
 use crate::mesh::{Mesh, MeshError};
 use std::path::{Path, PathBuf};
@@ -27,8 +29,8 @@ pub enum ReadMode {
     /// Memory-map the file (fastest on local disks).
     #[default]
     Mmap,
-    /// Read the file into a buffer (safe on NFS/Lustre, where a mapped file that is replaced or
-    /// truncated by another process would crash the reader).
+    /// Read the file into a buffer (for NFS/Lustre, where mapped pages of a file replaced by
+    /// another client can go stale; a file truncated under a mapping fails its case either way).
     Read,
 }
 
@@ -173,7 +175,9 @@ pub fn read_mesh(path: &Path, options: &ReadOptions) -> Result<LoadedMesh, ReadE
         kind,
     };
     let bytes = FileBytes::open(path, options.mode).map_err(|e| err(e.into()))?;
-    decode_mesh(&bytes, extension(path).as_deref(), options).map_err(err)
+    let decoded = decode_mesh(&bytes, extension(path).as_deref(), options);
+    bytes.verify().map_err(|e| err(e.into()))?;
+    decoded.map_err(err)
 }
 
 /// Decodes mesh bytes; `extension` (lower case, no dot) breaks ties the content leaves open.
@@ -202,14 +206,17 @@ pub fn decode_mesh(
 }
 
 /// Runs `f` over the bytes of a file, mapped or read as `mode` says; the bytes are released
-/// when `f` returns. For callers that need more than a decode (a content hash, say).
+/// when `f` returns. For callers that need more than a decode (a content hash, say). A file
+/// cut short while `f` ran is an error, whatever `f` made of it.
 pub fn with_file_bytes<T>(
     path: &Path,
     mode: ReadMode,
     f: impl FnOnce(&[u8]) -> T,
 ) -> std::io::Result<T> {
     let bytes = FileBytes::open(path, mode)?;
-    Ok(f(&bytes))
+    let out = f(&bytes);
+    bytes.verify()?;
+    Ok(out)
 }
 
 /// Lower-case extension of a path, as `decode_mesh` takes it.
@@ -217,39 +224,41 @@ pub fn extension(path: &Path) -> Option<String> {
     Some(path.extension()?.to_str()?.to_ascii_lowercase())
 }
 
-/// File contents, mapped or read; dropped as soon as decoding is done.
-enum FileBytes {
-    Mapped(memmap2::Mmap),
-    Owned(Vec<u8>),
-}
+/// File contents, mapped (guarded against truncation) or read; dropped as soon as decoding
+/// is done.
+struct FileBytes(MappedFile);
 
 impl FileBytes {
     fn open(path: &Path, mode: ReadMode) -> std::io::Result<FileBytes> {
         // Checked before opening: opening a FIFO blocks, and /dev/zero never ends.
         check_regular_file(path)?;
         let file = std::fs::File::open(path)?;
-        let len = file.metadata()?.len();
-        // Mapping an empty file fails on some systems; an empty buffer gives the clearer error.
-        if mode == ReadMode::Read || len == 0 {
+        if mode == ReadMode::Read {
+            let len = file.metadata()?.len();
             let mut buf = Vec::new();
+            buf.try_reserve_exact(usize::try_from(len).unwrap_or(usize::MAX))
+                .map_err(|_| {
+                    std::io::Error::new(
+                        std::io::ErrorKind::OutOfMemory,
+                        format!("cannot allocate {len} bytes to read the file"),
+                    )
+                })?;
             std::io::Read::read_to_end(&mut &file, &mut buf)?;
-            return Ok(FileBytes::Owned(buf));
+            return Ok(FileBytes(MappedFile::from_bytes(buf)));
         }
-        // SAFETY: the map is read-only and dropped before read_mesh returns. Another process
-        // truncating the file meanwhile would fault; ReadMode::Read exists for filesystems
-        // where that can happen.
-        let map = unsafe { memmap2::MmapOptions::new().populate().map(&file)? };
-        Ok(FileBytes::Mapped(map))
+        Ok(FileBytes(MappedFile::map_with(&file, true)?))
+    }
+
+    /// Fails when the file was cut short while it was mapped.
+    fn verify(&self) -> std::io::Result<()> {
+        self.0.verify()
     }
 }
 
 impl std::ops::Deref for FileBytes {
     type Target = [u8];
     fn deref(&self) -> &[u8] {
-        match self {
-            FileBytes::Mapped(m) => m,
-            FileBytes::Owned(v) => v,
-        }
+        self.0.bytes()
     }
 }
 

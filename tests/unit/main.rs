@@ -6,6 +6,7 @@ mod extract_thin;
 mod guard;
 mod io_atomic;
 mod io_identity;
+mod io_mapped;
 mod io_ply_header;
 mod io_text;
 mod io_vtp;
