@@ -14,6 +14,37 @@ pub fn zeroed_vec<T: Copy + Default>(n: usize) -> Vec<T> {
     v
 }
 
+/// Types whose all-zero bytes are their default value: integers and floats.
+pub trait Zeroable: Copy + Default {}
+impl Zeroable for u8 {}
+impl Zeroable for u16 {}
+impl Zeroable for u32 {}
+impl Zeroable for u64 {}
+impl Zeroable for i32 {}
+impl Zeroable for f32 {}
+impl Zeroable for f64 {}
+
+/// [`zeroed_vec`] that answers `None` when the memory cannot be had (a size from a file
+/// header, say), instead of aborting the process.
+pub fn try_zeroed_vec<T: Zeroable>(n: usize) -> Option<Vec<T>> {
+    let layout = std::alloc::Layout::array::<T>(n).ok()?;
+    if layout.size() == 0 {
+        return Some(vec![T::default(); n]);
+    }
+    // SAFETY: a non-zero-size layout for `n` values of T; all-zero bytes are a valid T
+    // (`Zeroable`); the buffer comes from the global allocator with exactly this layout, as
+    // `Vec::from_raw_parts` requires, with length and capacity `n`.
+    let v = unsafe {
+        let ptr = std::alloc::alloc_zeroed(layout) as *mut T;
+        if ptr.is_null() {
+            return None;
+        }
+        Vec::from_raw_parts(ptr, n, n)
+    };
+    advise(&v);
+    Some(v)
+}
+
 /// An empty vector with room for `n` values whose pages are advised to be huge (a buffer that
 /// is written whole right away: its first touch then faults in 2 MiB at a time).
 pub fn with_capacity<T>(n: usize) -> Vec<T> {

@@ -106,3 +106,121 @@ fn a_cohort_of_large_cases_stays_within_the_memory_budget() {
         rss_kb / 1024
     );
 }
+
+/// Label maps of noise (each 64^3 voxels, 262 KB, 3.4 M surface triangles) under a 64 MB
+/// budget with 4 workers: their surfaces are counted before any is made, so each case fails
+/// with the figure and the run stays within the budget (it took 2.8 GB before).
+#[test]
+fn noise_label_maps_stay_within_the_memory_budget() {
+    let _alone = ALONE.lock().unwrap_or_else(|e| e.into_inner());
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let mut rng = fastrand::Rng::with_seed(3);
+    for i in 0..4 {
+        let grid =
+            destair::volume::Grid::axis_aligned([1.0; 3], [0.0; 3], destair::volume::Space::Ras);
+        let v = destair::volume::LabelVolume::from_values(
+            [64, 64, 64],
+            grid,
+            (0..64 * 64 * 64).map(|_| rng.i64(0..3)),
+        )
+        .unwrap();
+        let case = dir.join(format!("cases/noise-{i}"));
+        std::fs::create_dir_all(&case).unwrap();
+        std::fs::write(
+            case.join("seg.nii"),
+            destair::volume::nifti::encode(&v, false).unwrap(),
+        )
+        .unwrap();
+    }
+    let c = write_config(
+        dir,
+        "c.toml",
+        "[input]\nroots = [\"cases\"]\ncase_depth = 1\n[output]\nroot = \"out\"\n[run]\nworkers = 4\nmemory_budget_mb = 64\n",
+    );
+    let (rss_kb, code) = peak_rss_kb(&["run", c.to_str().unwrap()], &[]);
+    assert_eq!(code, Some(3));
+    eprintln!(
+        "4 noise maps, budget 64 MB, 4 workers: peak RSS {} MB",
+        rss_kb / 1024
+    );
+    assert!(rss_kb <= (1.2 * 64.0 * 1024.0) as i64, "peak {rss_kb} kB");
+    let report = std::fs::read_to_string(dir.join("out/noise-0/report.json")).unwrap();
+    assert!(
+        report.contains("triangles") && report.contains("memory budget"),
+        "{report}"
+    );
+}
+
+/// A gzip bomb (about 1 MB inflating to a gigabyte) in a cohort of three under an address-space
+/// limit, as clusters set: refused from its header before a byte is inflated; the other two
+/// cases are done and the run exits 3 (it aborted with SIGABRT before, writing nothing).
+#[test]
+fn a_gzip_bomb_under_an_address_space_limit_fails_alone() {
+    let _alone = ALONE.lock().unwrap_or_else(|e| e.into_inner());
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    for case in ["a", "b"] {
+        let run = destair(&[
+            "phantom",
+            "neck",
+            "--out",
+            dir.join("cases").join(case).to_str().unwrap(),
+        ]);
+        assert!(run.status.success());
+    }
+    // 1024 x 1024 x 1000 u8 voxels, all zero: a first gzip member with the header, then
+    // members of 64 MB of zeros (gzip files may hold several; readers join them).
+    let grid = destair::volume::Grid::axis_aligned([1.0; 3], [0.0; 3], destair::volume::Space::Ras);
+    let tiny =
+        destair::volume::LabelVolume::from_values([1, 1, 1], grid, std::iter::once(0)).unwrap();
+    let mut header = destair::volume::nifti::encode(&tiny, false).unwrap();
+    header.truncate(352);
+    for (k, d) in [1024i16, 1024, 1000].iter().enumerate() {
+        header[42 + 2 * k..44 + 2 * k].copy_from_slice(&d.to_le_bytes());
+    }
+    let gz = |bytes: &[u8]| {
+        use std::io::Write;
+        let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
+        e.write_all(bytes).unwrap();
+        e.finish().unwrap()
+    };
+    let chunk = 64usize << 20;
+    let zeros = vec![0u8; chunk];
+    let mut bomb = gz(&[header.as_slice(), &zeros].concat());
+    let member = gz(&zeros);
+    let total = 1024u64 * 1024 * 1000;
+    for _ in 1..total.div_ceil(chunk as u64) {
+        bomb.extend_from_slice(&member);
+    }
+    std::fs::create_dir_all(dir.join("cases/bomb")).unwrap();
+    std::fs::write(dir.join("cases/bomb/seg.nii.gz"), &bomb).unwrap();
+    eprintln!("bomb: {} bytes", bomb.len());
+    let c = write_config(
+        dir,
+        "c.toml",
+        "[input]\nroots = [\"cases\"]\ncase_depth = 1\n[output]\nroot = \"out\"\n[defaults]\nmethod = \"laplace\"\n",
+    );
+    // ulimit -v 4 GB, then destair.
+    let run = std::process::Command::new("sh")
+        .args([
+            "-c",
+            "ulimit -v 4194304 && exec \"$0\" run \"$1\"",
+            env!("CARGO_BIN_EXE_destair"),
+            c.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(3), "{err}");
+    assert!(err.contains("1 case of 3 failed: bomb"), "{err}");
+    assert!(
+        err.contains("memory budget") && err.contains("ulimit -v"),
+        "{err}"
+    );
+    for case in ["a", "b"] {
+        let report =
+            std::fs::read_to_string(dir.join("out").join(case).join("report.json")).unwrap();
+        assert!(report.contains("\"status\": \"ok\""), "{case}: {report}");
+    }
+}

@@ -14,6 +14,9 @@ pub struct Args {
     /// Names for label values, e.g. 1=tumor,2=vein (they win over names in the file).
     #[arg(long, value_parser = parse_labels)]
     labels: Option<LabelNames>,
+    /// Most distinct labels the map may hold (more is an image, not a segmentation).
+    #[arg(long, default_value_t = 255, value_parser = clap::value_parser!(u16).range(1..))]
+    max_labels: u16,
     /// World convention of the meshes: lps (3D Slicer's) or ras.
     #[arg(long, value_enum, default_value_t = SpaceArg::Lps)]
     space: SpaceArg,
@@ -91,6 +94,10 @@ fn parse_labels(s: &str) -> Result<LabelNames, String> {
         .map(LabelNames)
 }
 
+/// Bytes `extract` holds per surface triangle, with room: measured 66 for 3.4 M triangles of a
+/// noise map (constrained surfaces, PLY written).
+const EXTRACT_BYTES_PER_TRIANGLE: u64 = 100;
+
 pub fn exec(args: Args) -> anyhow::Result<()> {
     let space = args.space.space();
     if let Some(s) = args.sigma_mm {
@@ -119,8 +126,44 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         .into());
     }
     let started = std::time::Instant::now();
-    let mut map =
-        destair::volume::read_label_map(&args.labelmap, space).map_err(LabelMapInputError)?;
+    let limits = destair::volume::LabelMapLimits {
+        max_labels: args.max_labels.into(),
+        ..Default::default()
+    };
+    // What reading and the surfaces need, against what this process may use, before either.
+    let memory = destair::job::memory::process_memory_limit();
+    let too_much = |need: u64, what: &str| -> anyhow::Error {
+        LabelMapInputError(destair::volume::LabelMapError {
+            path: args.labelmap.clone(),
+            message: format!(
+                "{what} needs about {} MB; this process may use {} MB ({})",
+                need.div_ceil(1 << 20),
+                memory.bytes.div_ceil(1 << 20),
+                memory.source
+            ),
+        })
+        .into()
+    };
+    let header = destair::volume::read_header(&args.labelmap).map_err(LabelMapInputError)?;
+    if header.bytes_to_read() > memory.bytes {
+        return Err(too_much(header.bytes_to_read(), "reading its voxels"));
+    }
+    let mut map = destair::volume::read_label_map_within(&args.labelmap, space, &limits)
+        .map_err(LabelMapInputError)?;
+    let triangles: u64 = map
+        .layers
+        .iter()
+        .map(|l| destair::extract::surface_size(l).triangles)
+        .sum();
+    let need = header
+        .bytes_to_read()
+        .saturating_add(triangles.saturating_mul(EXTRACT_BYTES_PER_TRIANGLE));
+    if need > memory.bytes {
+        return Err(too_much(
+            need,
+            &format!("making its surfaces ({triangles} triangles)"),
+        ));
+    }
     let read_s = started.elapsed().as_secs_f64();
     if let Some(names) = &args.labels {
         for (value, name) in &names.0 {
@@ -290,8 +333,12 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     };
     let json = serde_json::to_vec_pretty(&report)?;
     let path = args.out.join("extract.json");
-    destair::io::write_atomically(&path, |w| w.write_all(&json))
-        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    destair::io::write_atomically(&path, |w| w.write_all(&json)).map_err(|source| {
+        destair::io::WriteError::Io {
+            path: path.clone(),
+            source,
+        }
+    })?;
     for l in &report.labels {
         println!(
             "{}: label {} ({}), {} voxels, {} triangles, volume {:.1} mm³ (voxels {:.1} mm³)",

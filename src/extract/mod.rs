@@ -272,15 +272,30 @@ struct SlabScratch {
     last: [usize; 2],
 }
 
-/// The cells whose lower corner lies in the z range `ks` (from -1: the pad below the volume).
-fn slab(volume: &LabelVolume, ks: std::ops::Range<i64>, scratch: &mut SlabScratch) -> SlabOutput {
-    let SlabScratch {
-        templates,
-        table,
-        stamp,
-        last: [n_vertices, n_triangles],
-    } = scratch;
-    let (n_vertices, n_triangles) = (*n_vertices, *n_triangles);
+/// What [`visit_mixed_cells`] hands its visitor.
+enum Visit<'a> {
+    /// A new row of cells starts at y index `j` (all z layers of the slab follow).
+    Row(i64),
+    /// A cell whose eight corners do not all hold one label: its lower corner (i, j, k), its
+    /// template, and the cell's distinct labels in increasing order (the ranks the template
+    /// uses; the rest of the array is unused).
+    Cell {
+        ijk: [i64; 3],
+        template: &'a Template,
+        distinct: &'a [u16; 8],
+    },
+}
+
+/// Visits every cell with more than one label among its corners whose lower corner lies in
+/// the z range `ks` (from -1: the pad below the volume; labels outside the volume are
+/// background), row by row (y), all layers of `ks` for each row, then along x. Cells whose
+/// corners hold one label are skipped in runs; templates are derived on first use.
+fn visit_mixed_cells(
+    volume: &LabelVolume,
+    ks: std::ops::Range<i64>,
+    templates: &mut Templates,
+    mut visit: impl FnMut(Visit),
+) {
     let [nx, ny, nz] = volume.dims.map(|d| d as i64);
     // A row of voxels along x, or none outside the volume (background).
     let row = |j: i64, k: i64| -> Option<&[u16]> {
@@ -297,45 +312,10 @@ fn slab(volume: &LabelVolume, ks: std::ops::Range<i64>, scratch: &mut SlabScratc
             _ => 0,
         }
     };
-    // Grid points with a one-voxel pad, numbered for vertex keys.
-    let (px, py) = (nx + 2, ny + 2);
-    let point_id =
-        |i: i64, j: i64, k: i64| -> u64 { ((i + 1) + px * ((j + 1) + py * (k + 1))) as u64 };
-    let (bottom, top) = (ks.start as f64, ks.end as f64);
-    // Vertices on grid edges and faces: ids in a dense table over the two grid rows a row of
-    // cells spans, for every plane of the slab (cells are visited row by row, all layers of
-    // the slab for each row, so a vertex is found again while its row is in cache; a hash map
-    // by key, and tables over whole planes, measured 1.2-1.5x slower over the whole scan).
-    let table_len = (SLAB as usize + 1) * 2 * px as usize * 6;
-    if table.len() != table_len || *stamp > u32::MAX / 2 {
-        *table = vec![0; table_len];
-        *stamp = 0;
-    }
-    let base = *stamp;
-    let mut out = SlabOutput {
-        positions: Vec::with_capacity(n_vertices),
-        kinds: Vec::with_capacity(n_vertices),
-        triangles: Vec::with_capacity(n_triangles),
-        outer_apex: Vec::with_capacity(n_triangles),
-        sides: Vec::with_capacity(n_triangles),
-        bottom: Vec::new(),
-        top: Vec::new(),
-    };
-    let mut ids: Vec<u32> = Vec::with_capacity(32);
     let mut flags: Vec<u8> = vec![0; (nx.max(1) - 1) as usize];
     let mut columns: Vec<u16> = vec![0; nx.max(1) as usize];
-    // Vertices at the start of the previous and the current row of cells: a table entry of
-    // grid row r is this slab's when created during cell row r - 1 or r.
-    let mut row_start = [0u32; 2];
     for j in -1..ny {
-        let count = out.positions.len() as u32;
-        row_start = if j == -1 {
-            [count; 2]
-        } else {
-            [row_start[1], count]
-        };
-        // Entries valid in the table's rows j and j + 1.
-        let valid_above = [base + row_start[0], base + row_start[1]];
+        visit(Visit::Row(j));
         for k in ks.clone() {
             let rows = [row(j, k), row(j + 1, k), row(j, k + 1), row(j + 1, k + 1)];
             if rows.iter().all(Option::is_none) {
@@ -401,62 +381,175 @@ fn slab(volume: &LabelVolume, ks: std::ops::Range<i64>, scratch: &mut SlabScratc
                     });
                     templates.of(key)
                 };
-                let gid = |c: u64| {
-                    point_id(
-                        i + (c & 1) as i64,
-                        j + ((c >> 1) & 1) as i64,
-                        k + ((c >> 2) & 1) as i64,
-                    )
-                };
-                ids.clear();
-                for &(local, p) in &template.vertices {
-                    let at = [p[0] + i as f64, p[1] + j as f64, p[2] + k as f64];
-                    if local & 3 == KIND_APEX {
-                        // A cell's own branching point: no other cell has it.
-                        ids.push(out.positions.len() as u32);
-                        out.positions.push(at.map(|x| x as f32));
-                        out.kinds.push(VERTEX_APEX);
-                        continue;
-                    }
-                    let v = local >> 2;
-                    let (c, axis) = (v / 3, v % 3);
-                    let (dz, dy, dx) = ((c >> 2) as i64 & 1, (c >> 1) as i64 & 1, c as i64 & 1);
-                    let point = ((k + dz - ks.start) * 2 + ((j + dy + 1) & 1)) * px + (i + dx + 1);
-                    let entry = &mut table[point as usize * 6 + ((local & 3) * 3 + axis) as usize];
-                    let next = out.positions.len() as u32;
-                    let id = if *entry > valid_above[dy as usize] {
-                        *entry - base - 1
-                    } else {
-                        *entry = base + next + 1;
-                        next
-                    };
-                    if id == next {
-                        let global = (((gid(c) * 3) + axis) << 2) | (local & 3);
-                        out.positions.push(at.map(|x| x as f32));
-                        out.kinds.push(if local & 3 == KIND_APEX {
-                            VERTEX_APEX
-                        } else if local & 3 == cell::KIND_FACE {
-                            VERTEX_FACE
-                        } else {
-                            VERTEX_EDGE
-                        });
-                        // On the slab's bottom or top plane: shared with the next slab.
-                        if at[2] == bottom {
-                            out.bottom.push((id, global));
-                        } else if at[2] == top {
-                            out.top.push((global, id));
-                        }
-                    }
-                    ids.push(id);
-                }
-                for t in &template.triangles {
-                    out.triangles.push(t.corners.map(|x| ids[x as usize]));
-                    out.outer_apex.push(ids[t.outer_apex as usize]);
-                    out.sides.push(t.sides.map(|r| distinct[r as usize]));
-                }
+                visit(Visit::Cell {
+                    ijk: [i, j, k],
+                    template,
+                    distinct: &distinct,
+                });
             }
         }
     }
+}
+
+/// How large the surfaces of a label volume will be, counted in one pass over its cells
+/// without making them: for bounding the memory of an extraction before it starts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+pub struct SurfaceSize {
+    /// Cells whose eight corners hold more than one label.
+    pub interface_cells: u64,
+    /// Triangles of all the labels' surfaces together (an interface between two labels counts
+    /// once for each; towards the background once).
+    pub triangles: u64,
+}
+
+/// Counts the cells and surface triangles [`interfaces`] and [`label_surfaces`] would make,
+/// exactly, without making them (slabs in parallel; integer sums, so the same for any thread
+/// count). Costs about what the scan of [`interfaces`] costs without its outputs.
+pub fn surface_size(volume: &LabelVolume) -> SurfaceSize {
+    use rayon::prelude::*;
+    let nz = volume.dims[2] as i64;
+    let n_slabs = (nz + 1 + SLAB - 1) / SLAB;
+    (0..n_slabs)
+        .into_par_iter()
+        .map_init(Templates::default, |templates, s| {
+            let k0 = -1 + s * SLAB;
+            let mut size = SurfaceSize::default();
+            visit_mixed_cells(volume, k0..(k0 + SLAB).min(nz), templates, |v| {
+                if let Visit::Cell {
+                    template, distinct, ..
+                } = v
+                {
+                    size.interface_cells += 1;
+                    for t in &template.triangles {
+                        size.triangles += t
+                            .sides
+                            .iter()
+                            .filter(|&&r| distinct[r as usize] != 0)
+                            .count() as u64;
+                    }
+                }
+            });
+            size
+        })
+        .reduce(SurfaceSize::default, |a, b| SurfaceSize {
+            interface_cells: a.interface_cells + b.interface_cells,
+            triangles: a.triangles + b.triangles,
+        })
+}
+
+/// The cells whose lower corner lies in the z range `ks` (from -1: the pad below the volume).
+fn slab(volume: &LabelVolume, ks: std::ops::Range<i64>, scratch: &mut SlabScratch) -> SlabOutput {
+    let SlabScratch {
+        templates,
+        table,
+        stamp,
+        last: [n_vertices, n_triangles],
+    } = scratch;
+    let (n_vertices, n_triangles) = (*n_vertices, *n_triangles);
+    let [nx, ny] = [volume.dims[0] as i64, volume.dims[1] as i64];
+    // Grid points with a one-voxel pad, numbered for vertex keys.
+    let (px, py) = (nx + 2, ny + 2);
+    let point_id =
+        |i: i64, j: i64, k: i64| -> u64 { ((i + 1) + px * ((j + 1) + py * (k + 1))) as u64 };
+    let (bottom, top) = (ks.start as f64, ks.end as f64);
+    // Vertices on grid edges and faces: ids in a dense table over the two grid rows a row of
+    // cells spans, for every plane of the slab (cells are visited row by row, all layers of
+    // the slab for each row, so a vertex is found again while its row is in cache; a hash map
+    // by key, and tables over whole planes, measured 1.2-1.5x slower over the whole scan).
+    let table_len = (SLAB as usize + 1) * 2 * px as usize * 6;
+    if table.len() != table_len || *stamp > u32::MAX / 2 {
+        *table = vec![0; table_len];
+        *stamp = 0;
+    }
+    let base = *stamp;
+    let mut out = SlabOutput {
+        positions: Vec::with_capacity(n_vertices),
+        kinds: Vec::with_capacity(n_vertices),
+        triangles: Vec::with_capacity(n_triangles),
+        outer_apex: Vec::with_capacity(n_triangles),
+        sides: Vec::with_capacity(n_triangles),
+        bottom: Vec::new(),
+        top: Vec::new(),
+    };
+    let mut ids: Vec<u32> = Vec::with_capacity(32);
+    // Vertices at the start of the previous and the current row of cells: a table entry of
+    // grid row r is this slab's when created during cell row r - 1 or r.
+    let mut row_start = [0u32; 2];
+    let mut valid_above = [0u32; 2];
+    let k_start = ks.start;
+    visit_mixed_cells(volume, ks, templates, |v| {
+        let (i, j, k, template, distinct) = match v {
+            Visit::Row(j) => {
+                let count = out.positions.len() as u32;
+                row_start = if j == -1 {
+                    [count; 2]
+                } else {
+                    [row_start[1], count]
+                };
+                // Entries valid in the table's rows j and j + 1.
+                valid_above = [base + row_start[0], base + row_start[1]];
+                return;
+            }
+            Visit::Cell {
+                ijk: [i, j, k],
+                template,
+                distinct,
+            } => (i, j, k, template, distinct),
+        };
+        let gid = |c: u64| {
+            point_id(
+                i + (c & 1) as i64,
+                j + ((c >> 1) & 1) as i64,
+                k + ((c >> 2) & 1) as i64,
+            )
+        };
+        ids.clear();
+        for &(local, p) in &template.vertices {
+            let at = [p[0] + i as f64, p[1] + j as f64, p[2] + k as f64];
+            if local & 3 == KIND_APEX {
+                // A cell's own branching point: no other cell has it.
+                ids.push(out.positions.len() as u32);
+                out.positions.push(at.map(|x| x as f32));
+                out.kinds.push(VERTEX_APEX);
+                continue;
+            }
+            let v = local >> 2;
+            let (c, axis) = (v / 3, v % 3);
+            let (dz, dy, dx) = ((c >> 2) as i64 & 1, (c >> 1) as i64 & 1, c as i64 & 1);
+            let point = ((k + dz - k_start) * 2 + ((j + dy + 1) & 1)) * px + (i + dx + 1);
+            let entry = &mut table[point as usize * 6 + ((local & 3) * 3 + axis) as usize];
+            let next = out.positions.len() as u32;
+            let id = if *entry > valid_above[dy as usize] {
+                *entry - base - 1
+            } else {
+                *entry = base + next + 1;
+                next
+            };
+            if id == next {
+                let global = (((gid(c) * 3) + axis) << 2) | (local & 3);
+                out.positions.push(at.map(|x| x as f32));
+                out.kinds.push(if local & 3 == KIND_APEX {
+                    VERTEX_APEX
+                } else if local & 3 == cell::KIND_FACE {
+                    VERTEX_FACE
+                } else {
+                    VERTEX_EDGE
+                });
+                // On the slab's bottom or top plane: shared with the next slab.
+                if at[2] == bottom {
+                    out.bottom.push((id, global));
+                } else if at[2] == top {
+                    out.top.push((global, id));
+                }
+            }
+            ids.push(id);
+        }
+        for t in &template.triangles {
+            out.triangles.push(t.corners.map(|x| ids[x as usize]));
+            out.outer_apex.push(ids[t.outer_apex as usize]);
+            out.sides.push(t.sides.map(|r| distinct[r as usize]));
+        }
+    });
     out.top.sort_unstable();
     *stamp = base + out.positions.len() as u32 + 1;
     scratch.last = [out.positions.len(), out.triangles.len()];

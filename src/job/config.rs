@@ -50,6 +50,12 @@ pub struct InputConfig {
     /// case's structures). Default: every .nii, .nii.gz, .nrrd, .seg.nrrd and .nhdr file;
     /// `[]` reads none. Narrow it when case folders also hold images (`["*seg*.nii.gz"]`).
     pub label_maps: Option<Vec<String>>,
+    /// Most voxels a label map may declare, all layers together (default 2^30).
+    pub max_label_voxels: Option<u64>,
+    /// Most distinct labels a label map may hold (default 255).
+    pub max_labels: Option<usize>,
+    /// Smallest and largest voxel spacing a label map may have, in mm (default [0.001, 1000]).
+    pub spacing_range_mm: Option<[f64; 2]>,
 }
 
 fn default_extensions() -> Vec<String> {
@@ -101,7 +107,8 @@ fn default_formats() -> Vec<String> {
 pub struct RunConfig {
     /// Cases processed at the same time (default 1; each uses all threads inside).
     pub workers: Option<usize>,
-    /// Upper bound on the input bytes of the cases in flight, in MB (default 1024).
+    /// Upper bound on the estimated memory of the cases in flight, in MB (default: half of
+    /// what this process may use; never more than that).
     pub memory_budget_mb: Option<u64>,
     /// Read with plain reads instead of memory maps (network filesystems).
     #[serde(default)]

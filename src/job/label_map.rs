@@ -14,15 +14,13 @@ use crate::volume::grid::GridFrame;
 use crate::volume::LabelMap;
 use std::path::Path;
 
-/// Most labels a label map of a cohort may hold: more is an image (a CT holds thousands of
-/// distinct values), not a segmentation. TotalSegmentator's largest task has 117.
-pub const MAX_LABELS: usize = 1000;
-
-/// Estimated peak bytes per voxel of a label map case: the stored labels (2), the decoded
-/// file (up to 4), the extraction, and smoothing the surfaces. Measured on a 512 x 512 x 300 u8
-/// volume with 12 labels (2.1 M interface triangles): 3.9 (binary surfaces, HC 20 iterations,
-/// peak RSS 308 MB), 4.6 (constrained surfaces with their binary copies, 358 MB).
-pub const MEMORY_PER_VOXEL: u64 = 8;
+/// Estimated peak bytes per surface triangle of a label-map case (all labels' surfaces
+/// together): the extraction, the surfaces with their binary copies, smoothing, metrics, the
+/// guard, pictures and encoded outputs. Measured peaks: 224 B (noise, constrained surfaces,
+/// defaults) to 470 B (HC with references and three output formats) per triangle; the same
+/// as the 24 bytes per input byte of a mesh case (a binary PLY holds about 19 bytes per
+/// triangle).
+pub const MEMORY_PER_TRIANGLE: u64 = 480;
 
 /// A label map of a case, read and hashed.
 #[derive(Debug)]
@@ -34,6 +32,12 @@ pub struct LoadedLabelMap {
     /// BLAKE3 of the file's bytes (and of its detached data file's, when there is one).
     pub blake3: String,
     pub map: Result<LabelMap, String>,
+    /// Estimated peak bytes of processing it: reading, and the surfaces counted before any is
+    /// made (0 when it could not be read).
+    pub memory: u64,
+    /// It was refused because it needs more memory than `room` allowed (a larger budget may
+    /// admit it, so a rerun with another budget tries it again).
+    pub over_budget: bool,
 }
 
 /// Where a structure's mesh coordinates live.
@@ -148,8 +152,11 @@ pub struct LabelStructure {
     pub source: LabelSource,
 }
 
-/// Reads and hashes a label map (with its detached data file) in `plan.space`.
-pub fn load_label_map(plan: &Plan, path: &Path) -> LoadedLabelMap {
+/// Reads and hashes a label map (with its detached data file) in `plan.space`, within
+/// `plan.label_limits` and `room` bytes of memory: its header says what reading takes, and a
+/// count of its surface triangles (one pass over the cells, nothing made) what the surfaces
+/// will; a map that would need more than `room` is refused with the figures before that work.
+pub fn load_label_map(plan: &Plan, path: &Path, room: u64) -> LoadedLabelMap {
     let file = path
         .file_name()
         .map_or_else(String::new, |f| f.to_string_lossy().into_owned());
@@ -159,34 +166,92 @@ pub fn load_label_map(plan: &Plan, path: &Path) -> LoadedLabelMap {
         hasher.update(b);
         bytes += b.len() as u64;
     });
+    let shown = plan.display(path);
+    let mut memory = 0;
+    let mut over_budget = false;
+    let budget = |need: u64, what: String| {
+        format!(
+            "{shown}: {what} needs about {} MB, more than the {} MB left for it of the memory budget ({} MB, {}); raise [run] memory_budget_mb (or the limit behind it) if the machine has the memory",
+            mb(need),
+            mb(room),
+            mb(plan.memory_budget_bytes),
+            plan.memory_budget_source
+        )
+    };
     let map = match hashed {
-        Err(e) => Err(format!("{}: cannot read: {e}", plan.display(path))),
-        Ok(()) => crate::volume::read_label_map(path, plan.space)
-            .map_err(|e| format!("{}: {}", plan.display(path), e.message))
-            .and_then(|map| {
-                if let Some(data) = &map.data_file {
-                    with_file_bytes(data, plan.read_mode, |b| {
-                        hasher.update(b);
-                        bytes += b.len() as u64;
-                    })
-                    .map_err(|e| format!("{}: cannot read: {e}", plan.display(data)))?;
-                }
-                let n: usize = map.layers.iter().map(|l| l.labels.len()).sum();
-                if n > MAX_LABELS {
-                    return Err(format!(
-                        "{}: holds {n} distinct values, more than the {MAX_LABELS} labels a segmentation has: is it an image? Select the label maps with [input] label_maps (e.g. [\"*seg*.nii.gz\"])",
-                        plan.display(path)
-                    ));
-                }
-                Ok(map)
-            }),
+        Err(e) => Err(format!("{shown}: cannot read: {e}")),
+        Ok(()) => (|| {
+            // A header that cannot be read is left to the reader, whose error says more (a
+            // truncated gzip stream, say); it fails there before reading any voxel.
+            let Ok(header) = crate::volume::read_header(path) else {
+                return crate::volume::read_label_map_within(path, plan.space, &plan.label_limits)
+                    .map_err(|e| format!("{shown}: {}", e.message));
+            };
+            plan.label_limits
+                .check_voxels(header.dims, header.n_layers)
+                .map_err(|e| format!("{shown}: {e}"))?;
+            let to_read = header.bytes_to_read();
+            if to_read > room {
+                over_budget = true;
+                return Err(budget(
+                    to_read,
+                    format!(
+                        "reading its {} x {} x {} voxels{}",
+                        header.dims[0],
+                        header.dims[1],
+                        header.dims[2],
+                        if header.n_layers > 1 {
+                            format!(" in {} layers", header.n_layers)
+                        } else {
+                            String::new()
+                        }
+                    ),
+                ));
+            }
+            let map = crate::volume::read_label_map_within(path, plan.space, &plan.label_limits)
+                .map_err(|e| format!("{shown}: {}", e.message))?;
+            if let Some(data) = &map.data_file {
+                with_file_bytes(data, plan.read_mode, |b| {
+                    hasher.update(b);
+                    bytes += b.len() as u64;
+                })
+                .map_err(|e| format!("{}: cannot read: {e}", plan.display(data)))?;
+            }
+            let size = map.layers.iter().map(crate::extract::surface_size).fold(
+                crate::extract::SurfaceSize::default(),
+                |a, b| crate::extract::SurfaceSize {
+                    interface_cells: a.interface_cells + b.interface_cells,
+                    triangles: a.triangles + b.triangles,
+                },
+            );
+            let need = to_read.saturating_add(size.triangles.saturating_mul(MEMORY_PER_TRIANGLE));
+            if need > room {
+                over_budget = true;
+                return Err(budget(
+                    need,
+                    format!(
+                        "making its surfaces ({} triangles over {} cells where labels meet; noise or an image rather than a segmentation makes surfaces everywhere)",
+                        size.triangles, size.interface_cells
+                    ),
+                ));
+            }
+            memory = need;
+            Ok(map)
+        })(),
     };
     LoadedLabelMap {
         file,
         bytes,
         blake3: hasher.finalize().to_hex().to_string(),
         map,
+        memory,
+        over_budget,
     }
+}
+
+/// Bytes as whole megabytes (rounded up), for messages.
+fn mb(bytes: u64) -> u64 {
+    bytes.div_ceil(1 << 20)
 }
 
 /// A label's name as a structure: `[labels]` first, then the file's own (Slicer's segment

@@ -28,6 +28,17 @@ pub struct LoadedFile {
     pub renumbering: Option<Renumbering>,
 }
 
+impl LoadedCase {
+    /// Estimated peak bytes of processing the case, now that its label maps' surfaces are
+    /// counted: its meshes' estimate and each map's.
+    pub fn memory(&self) -> u64 {
+        self.label_maps.iter().map(|m| m.memory).fold(
+            super::pipeline::mesh_memory(&self.input),
+            u64::saturating_add,
+        )
+    }
+}
+
 /// A case with its files in memory.
 #[derive(Debug)]
 pub struct LoadedCase {
@@ -93,10 +104,18 @@ pub fn load_case(plan: &Plan, input: CaseInput) -> LoadedCase {
             }
         })
         .collect();
+    // Each label map within what the budget leaves after the meshes and the maps before it.
+    let mut room = plan
+        .memory_budget_bytes
+        .saturating_sub(super::pipeline::mesh_memory(&input));
     let label_maps: Vec<LoadedLabelMap> = input
         .label_maps
         .iter()
-        .map(|p| load_label_map(plan, p))
+        .map(|p| {
+            let m = load_label_map(plan, p, room);
+            room = room.saturating_sub(m.memory);
+            m
+        })
         .collect();
     let key = resume_key(plan, &input, &files, &label_maps);
     LoadedCase {
@@ -145,6 +164,12 @@ fn resume_key(
     if !label_maps.is_empty() {
         // Structure names come from the files, so every settings table may apply to them.
         h.update(plan.settings_fingerprint().as_bytes());
+        // The limits decide what is refused; and a map refused for memory is tried again
+        // under another budget.
+        h.update(format!("{:?}", plan.label_limits).as_bytes());
+        if label_maps.iter().any(|m| m.over_budget) {
+            h.update(format!("budget {}", plan.memory_budget_bytes).as_bytes());
+        }
         for m in label_maps {
             h.update(m.file.as_bytes());
             h.update(&[0]);

@@ -4,7 +4,8 @@
 //! drops when the process dies (even by kill -9), which work on NFS, and whose holder's pid can
 //! be asked for. Byte 0 is the folder: an unsharded `run` takes it exclusively, shards and
 //! `run-case` share it. Each shard `I/N` and each case has a byte of its own above that, taken
-//! exclusively while the shard runs or while the case's folder is cleaned or written.
+//! exclusively while the shard runs, or from the moment a case is taken up until its folder is
+//! written.
 
 use std::fs::File;
 use std::path::{Path, PathBuf};

@@ -9,6 +9,7 @@ pub mod index_page;
 pub mod label_map;
 pub mod load;
 pub mod lock;
+pub mod memory;
 pub mod outputs;
 pub mod paths;
 mod pictures;

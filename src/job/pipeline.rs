@@ -75,25 +75,31 @@ pub struct RunResult {
     pub unfinished: usize,
 }
 
-/// Estimated peak memory of a case while it is processed (bytes).
-pub fn memory_estimate(case: &CaseInput) -> u64 {
-    let meshes = case
-        .meshes
+/// Estimated peak memory of a case's mesh files while it is processed (bytes): 24 per input
+/// byte.
+pub fn mesh_memory(case: &CaseInput) -> u64 {
+    case.meshes
         .iter()
         .map(|(_, p)| std::fs::metadata(p).map_or(0, |m| m.len()))
         .sum::<u64>()
-        .saturating_mul(MEMORY_PER_INPUT_BYTE);
-    // A label map's file size says little (gzip); its header says how many voxels it holds.
+        .saturating_mul(MEMORY_PER_INPUT_BYTE)
+}
+
+/// Estimated peak memory of a case before it is read (bytes): its meshes, and what reading
+/// its label maps takes by their headers (their surfaces are counted once they are read, and
+/// the case's share of the budget grows then; see [`LoadedCase::memory`]).
+pub fn memory_estimate(case: &CaseInput) -> u64 {
     let voxels = case
         .label_maps
         .iter()
         .map(|p| {
-            crate::volume::declared_voxels(p)
-                .unwrap_or_else(|| std::fs::metadata(p).map_or(0, |m| m.len()))
+            crate::volume::read_header(p).map_or_else(
+                |_| std::fs::metadata(p).map_or(0, |m| m.len()),
+                |h| h.bytes_to_read(),
+            )
         })
-        .fold(0u64, u64::saturating_add)
-        .saturating_mul(super::label_map::MEMORY_PER_VOXEL);
-    meshes.saturating_add(voxels)
+        .fold(0u64, u64::saturating_add);
+    mesh_memory(case).saturating_add(voxels)
 }
 
 /// Bounds the estimated memory of the cases in flight.
@@ -111,6 +117,16 @@ impl Budget {
             used = self.freed.wait(used).unwrap_or_else(|e| e.into_inner());
         }
         *used += n;
+    }
+
+    /// Grows a share of `held` bytes by `n` (a case whose surfaces were counted after it was
+    /// read), waiting while other cases hold what it needs; alone it always gets it.
+    fn acquire_more(&self, held: u64, n: u64) {
+        let mut used = self.used.lock().unwrap_or_else(|e| e.into_inner());
+        while *used > held && used.saturating_add(n) > self.limit {
+            used = self.freed.wait(used).unwrap_or_else(|e| e.into_inner());
+        }
+        *used = used.saturating_add(n);
     }
 
     fn release(&self, n: u64) {
@@ -177,6 +193,10 @@ fn load_cases(
         }
         started.fetch_add(1, Ordering::Relaxed);
         let loaded = load_case(plan, case);
+        // The label maps' surfaces are counted now: the case's share grows to its estimate.
+        let extra = loaded.memory().saturating_sub(size);
+        budget.acquire_more(size, extra);
+        let size = size + extra;
         let dir = case_dir(plan, &loaded.input.id);
         let scope = LockScope::Case(loaded.input.id.clone());
         if lock
@@ -187,8 +207,11 @@ fn load_cases(
         }
         let _ = remove_stale_temp_files(&dir);
         let already = !force && is_done(&dir, &loaded.key);
-        lock.unlock(&scope);
+        // A case to compute keeps its lock until the writer has written it: a `run-case` or
+        // another shard asking for it meanwhile waits (or is told it is busy) instead of
+        // computing it alongside.
         let sent = if already {
+            lock.unlock(&scope);
             let n = loaded.files.len();
             done.send(Finished::Skipped(loaded.input.id, size, n))
                 .is_ok()

@@ -42,6 +42,11 @@ pub struct Plan {
     pub naming: String,
     pub workers: usize,
     pub memory_budget_bytes: u64,
+    /// Where the budget comes from, for the run's first line and messages.
+    pub memory_budget_source: String,
+    /// What a label map may hold (`[input] max_label_voxels`, `max_labels`,
+    /// `spacing_range_mm`).
+    pub label_limits: crate::volume::LabelMapLimits,
     pub read_mode: ReadMode,
     /// `[guard]`: the distances between structures smoothing must keep.
     pub guard: crate::guard::GuardPolicy,
@@ -195,12 +200,9 @@ impl Plan {
                 "[run] workers = {workers}: must be between 1 and {MAX_WORKERS} (cases processed at once; each already uses every thread)"
             )));
         }
-        let memory_budget_mb = config.run.memory_budget_mb.unwrap_or(1024);
-        if !(1..=MAX_MEMORY_BUDGET_MB).contains(&memory_budget_mb) {
-            return Err(invalid(format!(
-                "[run] memory_budget_mb = {memory_budget_mb}: must be between 1 and {MAX_MEMORY_BUDGET_MB} (MB)"
-            )));
-        }
+        let (memory_budget_bytes, memory_budget_source) =
+            memory_budget(config.run.memory_budget_mb).map_err(invalid)?;
+        let label_limits = label_limits(&config.input).map_err(invalid)?;
         if let Some(d) = config.input.case_depth {
             if d > MAX_CASE_DEPTH {
                 return Err(invalid(format!(
@@ -235,7 +237,9 @@ impl Plan {
             html: config.output.html,
             naming,
             workers,
-            memory_budget_bytes: memory_budget_mb << 20,
+            memory_budget_bytes,
+            memory_budget_source,
+            label_limits,
             read_mode: if config.run.plain_read {
                 ReadMode::Read
             } else {
@@ -406,4 +410,66 @@ fn guard_policy(c: &super::config::GuardConfig) -> Result<crate::guard::GuardPol
         self_intersections: c.self_intersections.unwrap_or(defaults.self_intersections),
         pairs,
     })
+}
+
+/// The memory budget (bytes) and where it comes from: `[run] memory_budget_mb`, held to what
+/// this process may use, or by default half of that.
+fn memory_budget(configured_mb: Option<u64>) -> Result<(u64, String), String> {
+    let limit = super::memory::process_memory_limit();
+    let mib = |b: u64| crate::units::readable(b as f64 / f64::from(1 << 20));
+    match configured_mb {
+        Some(mb) if !(1..=MAX_MEMORY_BUDGET_MB).contains(&mb) => Err(format!(
+            "[run] memory_budget_mb = {mb}: must be between 1 and {MAX_MEMORY_BUDGET_MB} (MB)"
+        )),
+        Some(mb) if (mb << 20) > limit.bytes => Ok((
+            limit.bytes,
+            format!(
+                "[run] memory_budget_mb = {mb} held to what this process may use, by {}",
+                limit.source
+            ),
+        )),
+        Some(mb) => Ok((mb << 20, "[run] memory_budget_mb".into())),
+        None => Ok((
+            limit.bytes / 2,
+            format!(
+                "half of the {} MB this process may use, by {}",
+                mib(limit.bytes),
+                limit.source
+            ),
+        )),
+    }
+}
+
+/// `[input]`'s limits on label maps, checked.
+fn label_limits(
+    input: &super::config::InputConfig,
+) -> Result<crate::volume::LabelMapLimits, String> {
+    let mut limits = crate::volume::LabelMapLimits::default();
+    if let Some(n) = input.max_label_voxels {
+        if !(1..=crate::volume::MAX_VOXELS).contains(&n) {
+            return Err(format!(
+                "[input] max_label_voxels = {n}: must be between 1 and {}",
+                crate::volume::MAX_VOXELS
+            ));
+        }
+        limits.max_voxels = n;
+    }
+    if let Some(n) = input.max_labels {
+        if !(1..=u16::MAX as usize).contains(&n) {
+            return Err(format!(
+                "[input] max_labels = {n}: must be between 1 and {}",
+                u16::MAX
+            ));
+        }
+        limits.max_labels = n;
+    }
+    if let Some([lo, hi]) = input.spacing_range_mm {
+        if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && lo < hi) {
+            return Err(format!(
+                "[input] spacing_range_mm = [{lo}, {hi}]: expected two positive numbers, the smaller first (mm)"
+            ));
+        }
+        limits.spacing_mm = [lo, hi];
+    }
+    Ok(limits)
 }

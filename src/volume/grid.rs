@@ -111,6 +111,21 @@ impl Grid {
         Ok(())
     }
 
+    /// Checks every voxel spacing against `[smallest, largest]` (mm): outside it the header is
+    /// corrupt or in other units (1e-40 mm or 75 mm voxels are no scan).
+    pub fn check_spacing(&self, [smallest, largest]: [f64; 2]) -> Result<(), String> {
+        let spacing = self.spacing();
+        match (0..3).find(|&k| !(smallest..=largest).contains(&spacing[k])) {
+            Some(k) => Err(format!(
+                "the voxel spacing along axis {k} is {} mm, outside the {} to {} mm a scan has (a corrupt header, or one in other units; [input] spacing_range_mm widens it)",
+                crate::units::readable(spacing[k]),
+                crate::units::readable(smallest),
+                crate::units::readable(largest)
+            )),
+            None => Ok(()),
+        }
+    }
+
     /// Step length (mm) along each index axis.
     pub fn spacing(&self) -> [f64; 3] {
         let m = &self.matrix;

@@ -4,7 +4,8 @@
 //! else the qform, else the plain pixdim scaling (with a warning); NIfTI's world is RAS.
 
 use super::{
-    gunzip_overlapped, voxel_count, Grid, KeyHistogram, LabelMap, LabelVolume, Space, VoxelType,
+    gunzip_overlapped, voxel_count, Grid, KeyHistogram, LabelMap, LabelMapHeader, LabelMapLimits,
+    LabelVolume, Space, VoxelType,
 };
 use std::path::Path;
 
@@ -28,9 +29,24 @@ fn voxel_type(code: i16) -> Result<VoxelType, String> {
     })
 }
 
-/// The grid of a NIfTI header (RAS), and a warning when it had to be guessed.
-fn grid_of(h: &nifti::NiftiHeader) -> (Grid, Option<String>) {
+/// Largest amount by which the qform's (b, c, d) may exceed unit length: float32 rounding of a
+/// unit quaternion (nibabel refuses beyond 3 float32 epsilons; this is a little wider).
+const QUATERNION_SLACK: f64 = 1e-6;
+
+/// The grid of a NIfTI header (RAS), and a warning when it had to be guessed. A qform whose
+/// quaternion is longer than 1 is no rotation (its grid would scale every voxel), and voxel
+/// sizes (pixdim) are positive in NIfTI (the mirror goes in qfac): both are refused.
+fn grid_of(h: &nifti::NiftiHeader) -> Result<(Grid, Option<String>), String> {
     let p = |k: usize| h.pixdim[k] as f64;
+    let positive_pixdims = || -> Result<(), String> {
+        match (1..=3).find(|&k| p(k).is_nan() || p(k) <= 0.0) {
+            Some(k) => Err(format!(
+                "pixdim[{k}] = {}: NIfTI voxel sizes must be positive (a mirrored axis is qfac, pixdim[0])",
+                crate::units::readable(p(k))
+            )),
+            None => Ok(()),
+        }
+    };
     if h.sform_code > 0 {
         let r = [h.srow_x, h.srow_y, h.srow_z].map(|row| row.map(|x| x as f64));
         let grid = Grid {
@@ -42,11 +58,22 @@ fn grid_of(h: &nifti::NiftiHeader) -> (Grid, Option<String>) {
             origin: [r[0][3], r[1][3], r[2][3]],
             space: Space::Ras,
         };
-        return (grid, None);
+        return Ok((grid, None));
     }
     if h.qform_code > 0 {
         let (b, c, d) = (h.quatern_b as f64, h.quatern_c as f64, h.quatern_d as f64);
-        let a = (1.0 - (b * b + c * c + d * d)).max(0.0).sqrt();
+        let length2 = b * b + c * c + d * d;
+        if length2.is_nan() || length2 > 1.0 + QUATERNION_SLACK {
+            return Err(format!(
+                "the qform quaternion (b, c, d) = ({}, {}, {}) is longer than 1 (|q|^2 = {}): not a rotation, so the voxel grid cannot be placed",
+                crate::units::readable(b),
+                crate::units::readable(c),
+                crate::units::readable(d),
+                crate::units::readable(length2)
+            ));
+        }
+        positive_pixdims()?;
+        let a = (1.0 - length2).max(0.0).sqrt();
         let rot = super::grid::quaternion_rotation(a, b, c, d);
         let qfac = if h.pixdim[0] < 0.0 { -1.0 } else { 1.0 };
         let scale = [p(1), p(2), qfac * p(3)];
@@ -61,24 +88,24 @@ fn grid_of(h: &nifti::NiftiHeader) -> (Grid, Option<String>) {
             origin: [h.quatern_x as f64, h.quatern_y as f64, h.quatern_z as f64],
             space: Space::Ras,
         };
-        return (grid, None);
+        return Ok((grid, None));
     }
-    (
+    positive_pixdims()?;
+    Ok((
         Grid::axis_aligned([p(1), p(2), p(3)], [0.0; 3], Space::Ras),
         Some("neither sform nor qform is set: the grid is pixdim-scaled at the origin, orientation unknown".into()),
-    )
+    ))
 }
 
-/// Reads a NIfTI-1 label map.
-pub fn read(path: &Path) -> Result<LabelMap, String> {
+/// Reads a NIfTI-1 label map within `limits`.
+pub fn read(path: &Path, limits: &LabelMapLimits) -> Result<LabelMap, String> {
     let gz = path
         .file_name()
         .is_some_and(|n| n.to_string_lossy().to_ascii_lowercase().ends_with(".gz"));
     let file = std::fs::File::open(path).map_err(|e| format!("cannot read: {e}"))?;
-    // SAFETY: read-only map, dropped before returning; see io::FileBytes for the NFS caveat.
-    let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| format!("cannot read: {e}"))?;
-    let bytes: &[u8] = &map;
-    if gz {
+    let map = crate::io::MappedFile::map(&file).map_err(|e| format!("cannot read: {e}"))?;
+    let bytes: &[u8] = map.bytes();
+    let read = if gz {
         // Header first, from the start of the stream, to know how much data to expect.
         use std::io::Read;
         let mut head = Vec::new();
@@ -87,40 +114,72 @@ pub fn read(path: &Path) -> Result<LabelMap, String> {
             .read_to_end(&mut head)
             .map_err(|e| format!("not a gzip file, or a corrupt one ({e})"))?;
         let (h, offset, n_bytes) = header(&head)?;
+        let grid = checked_grid(&h, limits)?;
         // The histogram of voxel values is taken while the rest is still being inflated.
         let mut counted = KeyHistogram::new(voxel_type(h.datatype)?, big_endian(&h));
         let data = gunzip_overlapped(bytes, offset, n_bytes, |piece| counted.add(piece))?;
-        decode(&h, &data, Some(counted))
+        decode(&h, grid, &data, Some(counted), limits)
     } else {
         let (h, offset, n_bytes) = header(bytes)?;
-        decode(&h, super::exact_slice(bytes, offset, n_bytes)?, None)
-    }
+        let grid = checked_grid(&h, limits)?;
+        decode(
+            &h,
+            grid,
+            super::exact_slice(bytes, offset, n_bytes)?,
+            None,
+            limits,
+        )
+    };
+    // A file that changed size while it was mapped was read in part as zeros: refuse it.
+    map.verify().map_err(|e| format!("cannot read: {e}"))?;
+    read
+}
+
+/// The header's grid, checked (before any voxel is read) with the voxel count against
+/// `limits`.
+fn checked_grid(
+    h: &nifti::NiftiHeader,
+    limits: &LabelMapLimits,
+) -> Result<(Grid, Option<String>), String> {
+    let dims = dims_of(h);
+    limits.check_voxels(dims.map(|d| d as u64), 1)?;
+    let (grid, warning) = grid_of(h)?;
+    grid.check()?;
+    grid.check_extent(dims)?;
+    grid.check_spacing(limits.spacing_mm)?;
+    Ok((grid, warning))
+}
+
+/// The three spatial dimensions of a header (1 for those it does not have).
+fn dims_of(h: &nifti::NiftiHeader) -> [usize; 3] {
+    let n_dims = h.dim[0] as usize;
+    let d = |k: usize| if k <= n_dims { h.dim[k] as usize } else { 1 };
+    [d(1), d(2), d(3)]
 }
 
 fn big_endian(h: &nifti::NiftiHeader) -> bool {
     h.endianness == nifti::Endianness::Big
 }
 
-/// Voxels the header declares (see [`super::declared_voxels`]).
-pub(super) fn declared_voxels(path: &Path, gz: bool) -> Option<u64> {
+/// What the header declares, read from the first 348 bytes (inflated ones for `.nii.gz`).
+pub(super) fn peek(path: &Path, gz: bool) -> Result<LabelMapHeader, String> {
     use std::io::Read;
-    let file = std::fs::File::open(path).ok()?;
+    let file = std::fs::File::open(path).map_err(|e| format!("cannot read: {e}"))?;
     let mut head = Vec::with_capacity(HEADER);
-    if gz {
+    let read = if gz {
         flate2::read::MultiGzDecoder::new(file)
             .take(HEADER as u64)
             .read_to_end(&mut head)
-            .ok()?;
     } else {
-        file.take(HEADER as u64).read_to_end(&mut head).ok()?;
-    }
-    let (h, _, _) = header(&head).ok()?;
-    let n_dims = h.dim[0] as usize;
-    Some(
-        (1..=3)
-            .map(|k| if k <= n_dims { h.dim[k] as u64 } else { 1 })
-            .product(),
-    )
+        file.take(HEADER as u64).read_to_end(&mut head)
+    };
+    read.map_err(|e| format!("cannot read the header: {e}"))?;
+    let (h, _, _) = header(&head)?;
+    Ok(LabelMapHeader {
+        dims: dims_of(&h).map(|d| d as u64),
+        n_layers: 1,
+        voxel_type: voxel_type(h.datatype)?,
+    })
 }
 
 /// Parses and checks the header: (header, voxel offset, voxel bytes).
@@ -183,17 +242,23 @@ fn header(bytes: &[u8]) -> Result<(nifti::NiftiHeader, u64, u64), String> {
 
 fn decode(
     h: &nifti::NiftiHeader,
+    (grid, warning): (Grid, Option<String>),
     data: &[u8],
     counted: Option<KeyHistogram>,
+    limits: &LabelMapLimits,
 ) -> Result<LabelMap, String> {
-    let n_dims = h.dim[0] as usize;
-    let d = |k: usize| if k <= n_dims { h.dim[k] as usize } else { 1 };
-    let dims = [d(1), d(2), d(3)];
-    let (grid, warning) = grid_of(h);
-    grid.check()?;
-    grid.check_extent(dims)?;
+    let dims = dims_of(h);
     let t = voxel_type(h.datatype)?;
-    let volume = LabelVolume::from_raw(dims, grid, data, t, big_endian(h), (0, 1), counted)?;
+    let volume = LabelVolume::from_raw(
+        dims,
+        grid,
+        data,
+        t,
+        big_endian(h),
+        (0, 1),
+        counted,
+        limits.max_labels,
+    )?;
     Ok(LabelMap {
         layers: vec![volume],
         segments: Vec::new(),

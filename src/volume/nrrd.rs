@@ -5,11 +5,11 @@
 //! axis is a list holds one layer of (possibly overlapping) segments per entry.
 
 use super::{
-    gunzip_overlapped, voxel_count, Grid, KeyHistogram, LabelMap, LabelVolume, Segment, Space,
-    VoxelType,
+    gunzip_overlapped, voxel_count, Grid, KeyHistogram, LabelMap, LabelMapHeader, LabelMapLimits,
+    LabelVolume, Segment, Space, VoxelType,
 };
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Longest header read (bytes).
 const MAX_HEADER: usize = 1 << 20;
@@ -62,28 +62,33 @@ fn vectors(s: &str) -> Result<Vec<Option<[f64; 3]>>, String> {
     Ok(out)
 }
 
-/// Reads a NRRD label map.
-pub fn read(path: &Path) -> Result<LabelMap, String> {
-    let file = std::fs::File::open(path).map_err(|e| format!("cannot read: {e}"))?;
-    // SAFETY: read-only map, dropped before returning.
-    let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| format!("cannot read: {e}"))?;
-    let bytes: &[u8] = &map;
-    if !bytes.starts_with(b"NRRD000") {
-        return Err("not a NRRD file (it does not start with NRRD000x)".into());
+/// A NRRD header, parsed and checked: what the voxels are and where they lie, before any is read.
+struct Header {
+    voxel_type: VoxelType,
+    /// Layers (the list axis of a 4D `.seg.nrrd`; 1 for a 3D map).
+    n_layers: u64,
+    dims: [u64; 3],
+    big_endian: bool,
+    grid: Grid,
+    skip: u64,
+    gzip: bool,
+    /// The detached data file's name as the header gives it.
+    data_file: Option<String>,
+    /// Slicer's `key:=value` pairs.
+    pairs: BTreeMap<String, String>,
+    warnings: Vec<String>,
+}
+
+impl Header {
+    /// Voxel bytes of all layers.
+    fn n_bytes(&self) -> u64 {
+        self.dims.iter().product::<u64>() * self.n_layers * self.voxel_type.size() as u64
     }
-    let window = &bytes[..bytes.len().min(MAX_HEADER)];
-    // The header ends at the first empty line (or at the end of a detached header).
-    let (header_len, data_start) = match find_blank_line(window) {
-        Some(x) => x,
-        None if bytes.len() <= MAX_HEADER => (bytes.len(), bytes.len()),
-        None => {
-            return Err(format!(
-                "no end of header within the first {MAX_HEADER} bytes"
-            ))
-        }
-    };
-    let text = std::str::from_utf8(&bytes[..header_len])
-        .map_err(|_| "the header is not text".to_string())?;
+}
+
+/// Parses the header text (up to the blank line) and checks everything it says that can be
+/// checked without the data: types, sizes against [`super::MAX_VOXELS`], the grid.
+fn parse_header(text: &str) -> Result<Header, String> {
     let mut fields: BTreeMap<String, String> = BTreeMap::new();
     let mut pairs: BTreeMap<String, String> = BTreeMap::new();
     for (n, line) in text.lines().enumerate().skip(1) {
@@ -105,7 +110,7 @@ pub fn read(path: &Path) -> Result<LabelMap, String> {
             .map(String::as_str)
             .ok_or_else(|| format!("the header has no {k:?} field"))
     };
-    let t = voxel_type(field("type")?)?;
+    let voxel_type = voxel_type(field("type")?)?;
     let dimension: usize = field("dimension")?
         .parse()
         .map_err(|_| "dimension is not a number".to_string())?;
@@ -124,11 +129,10 @@ pub fn read(path: &Path) -> Result<LabelMap, String> {
     } else {
         (1, [sizes[0], sizes[1], sizes[2]])
     };
-    let n_voxels = voxel_count(dims)?;
+    voxel_count(dims)?;
     if n_layers == 0 || n_layers > 256 {
         return Err(format!("{n_layers} layers: expected 1 to 256"));
     }
-    let n_bytes = n_voxels * n_layers * t.size() as u64;
     let big_endian = match fields.get("endian").map(String::as_str) {
         None | Some("little") => false,
         Some("big") => true,
@@ -216,55 +220,169 @@ pub fn read(path: &Path) -> Result<LabelMap, String> {
     if fields.get("line skip").is_some_and(|s| s != "0") {
         return Err("line skip is not read; give the data without leading lines".into());
     }
-    // The data: after the header, or in a detached file next to it.
-    let detached;
-    let mut data_file = None;
-    let data: &[u8] = match fields.get("data file").or_else(|| fields.get("datafile")) {
-        Some(name) => {
-            if name.starts_with("LIST") || name.contains('%') {
-                return Err(format!(
-                    "data file {name:?}: only a single data file is read"
-                ));
-            }
-            let p = path.parent().unwrap_or(Path::new(".")).join(name);
-            crate::io::check_regular_file(&p)
-                .map_err(|e| format!("data file {}: {e}", p.display()))?;
-            detached = std::fs::read(&p).map_err(|e| format!("data file {}: {e}", p.display()))?;
-            data_file = Some(p);
-            &detached
-        }
-        None => &bytes[data_start..],
-    };
-    // One layer's histogram of values is taken while the rest is still being inflated.
-    let mut counted = (n_layers == 1).then(|| KeyHistogram::new(t, big_endian));
-    let raw: std::borrow::Cow<[u8]> = match field("encoding")? {
-        "raw" => std::borrow::Cow::Borrowed(super::exact_slice(data, skip, n_bytes)?),
-        "gzip" | "gz" => {
-            std::borrow::Cow::Owned(gunzip_overlapped(data, skip, n_bytes, |piece| {
-                if let Some(h) = &mut counted {
-                    h.add(piece);
-                }
-            })?)
-        }
+    let gzip = match field("encoding")? {
+        "raw" => false,
+        "gzip" | "gz" => true,
         other => return Err(format!("encoding {other:?}: only raw and gzip are read")),
     };
-    if matches!(raw, std::borrow::Cow::Borrowed(_)) {
-        counted = None;
+    let data_file = fields
+        .get("data file")
+        .or_else(|| fields.get("datafile"))
+        .cloned();
+    if let Some(name) = &data_file {
+        if name.starts_with("LIST") || name.contains('%') {
+            return Err(format!(
+                "data file {name:?}: only a single data file is read"
+            ));
+        }
     }
-    let dims_usize = dims.map(|d| d as usize);
-    let mut layers = Vec::with_capacity(n_layers as usize);
-    for layer in 0..n_layers as usize {
-        layers.push(LabelVolume::from_raw(
+    Ok(Header {
+        voxel_type,
+        n_layers,
+        dims,
+        big_endian,
+        grid,
+        skip,
+        gzip,
+        data_file,
+        pairs,
+        warnings,
+    })
+}
+
+/// The header text of a NRRD's bytes and where its data starts (the end of the bytes for a
+/// detached header).
+fn split_header(bytes: &[u8]) -> Result<(&str, usize), String> {
+    if !bytes.starts_with(b"NRRD000") {
+        return Err("not a NRRD file (it does not start with NRRD000x)".into());
+    }
+    let window = &bytes[..bytes.len().min(MAX_HEADER)];
+    // The header ends at the first empty line (or at the end of a detached header).
+    let (header_len, data_start) = match find_blank_line(window) {
+        Some(x) => x,
+        None if bytes.len() <= MAX_HEADER => (bytes.len(), bytes.len()),
+        None => {
+            return Err(format!(
+                "no end of header within the first {MAX_HEADER} bytes"
+            ))
+        }
+    };
+    let text = std::str::from_utf8(&bytes[..header_len])
+        .map_err(|_| "the header is not text".to_string())?;
+    Ok((text, data_start))
+}
+
+/// The detached data file a header names, confined to the header's own folder: the name is
+/// resolved there (symlinks followed), and what it resolves to must lie in that folder or
+/// below it and be a regular file. A header from someone else's case folder cannot make
+/// destair read (and so disclose through the surfaces) any other file.
+fn confined_data_file(header_path: &Path, name: &str) -> Result<PathBuf, String> {
+    let folder = header_path.parent().unwrap_or(Path::new("."));
+    let folder = if folder.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        folder
+    };
+    let folder = folder
+        .canonicalize()
+        .map_err(|e| format!("data file {name:?}: the header's folder cannot be resolved ({e})"))?;
+    let named = folder.join(name);
+    let resolved = named
+        .canonicalize()
+        .map_err(|e| format!("data file {name:?}: {e}"))?;
+    if !resolved.starts_with(&folder) {
+        return Err(format!(
+            "data file {name:?} resolves to {}, outside the header's folder {}: a detached data file must lie beside its header (or below it)",
+            resolved.display(),
+            folder.display()
+        ));
+    }
+    crate::io::check_regular_file(&resolved).map_err(|e| format!("data file {name:?}: {e}"))?;
+    Ok(resolved)
+}
+
+/// Reads a NRRD label map within `limits`.
+pub fn read(path: &Path, limits: &LabelMapLimits) -> Result<LabelMap, String> {
+    let file = std::fs::File::open(path).map_err(|e| format!("cannot read: {e}"))?;
+    let map = crate::io::MappedFile::map(&file).map_err(|e| format!("cannot read: {e}"))?;
+    let bytes: &[u8] = map.bytes();
+    let (text, data_start) = split_header(bytes)?;
+    let h = parse_header(text)?;
+    limits.check_voxels(h.dims, h.n_layers)?;
+    h.grid.check_spacing(limits.spacing_mm)?;
+    let n_bytes = h.n_bytes();
+    // The data: after the header, or in a detached file next to it, whose size is checked
+    // against the header before a byte of it is read.
+    let mut data_file = None;
+    let mut detached = None;
+    if let Some(name) = &h.data_file {
+        let p = confined_data_file(path, name)?;
+        let f = std::fs::File::open(&p).map_err(|e| format!("data file {name:?}: {e}"))?;
+        let len = f
+            .metadata()
+            .map_err(|e| format!("data file {name:?}: {e}"))?
+            .len();
+        let expected = h.skip.saturating_add(n_bytes);
+        if !h.gzip && len != expected {
+            return Err(format!(
+                    "data file {name:?} holds {len} bytes; the header says {expected} (byte skip {} + {n_bytes} bytes of voxels)",
+                    h.skip
+                ));
+        }
+        if h.gzip && expected > len.saturating_mul(super::MAX_GZIP_RATIO) + 4096 {
+            return Err(format!(
+                    "data file {name:?} holds {len} bytes of gzip data, which cannot inflate to the {expected} bytes the header says"
+                ));
+        }
+        detached =
+            Some(crate::io::MappedFile::map(&f).map_err(|e| format!("data file {name:?}: {e}"))?);
+        data_file = Some(p);
+    }
+    let data: &[u8] = match &detached {
+        Some(m) => m.bytes(),
+        None => &bytes[data_start..],
+    };
+    let t = h.voxel_type;
+    // One layer's histogram of values is taken while the rest is still being inflated.
+    let mut counted = (h.n_layers == 1).then(|| KeyHistogram::new(t, h.big_endian));
+    let raw: std::borrow::Cow<[u8]> = if h.gzip {
+        std::borrow::Cow::Owned(gunzip_overlapped(data, h.skip, n_bytes, |piece| {
+            if let Some(counts) = &mut counted {
+                counts.add(piece);
+            }
+        })?)
+    } else {
+        counted = None;
+        std::borrow::Cow::Borrowed(super::exact_slice(data, h.skip, n_bytes)?)
+    };
+    let dims_usize = h.dims.map(|d| d as usize);
+    let mut layers = Vec::new();
+    layers
+        .try_reserve_exact(h.n_layers as usize)
+        .map_err(|_| "cannot allocate the layers".to_string())?;
+    let mut n_labels = 0;
+    for layer in 0..h.n_layers as usize {
+        let volume = LabelVolume::from_raw(
             dims_usize,
-            grid,
+            h.grid,
             &raw,
             t,
-            big_endian,
-            (layer, n_layers as usize),
+            h.big_endian,
+            (layer, h.n_layers as usize),
             counted.take(),
-        )?);
+            limits.max_labels - n_labels.min(limits.max_labels),
+        )?;
+        n_labels += volume.labels.len();
+        layers.push(volume);
     }
-    let segments = segments(&pairs, &mut warnings);
+    drop(raw);
+    // A file that changed size while it was mapped was read in part as zeros: refuse it.
+    map.verify().map_err(|e| format!("cannot read: {e}"))?;
+    if let Some(m) = &detached {
+        m.verify().map_err(|e| format!("data file: {e}"))?;
+    }
+    let mut warnings = h.warnings;
+    let segments = segments(&h.pairs, &mut warnings);
     Ok(LabelMap {
         layers,
         segments,
@@ -277,6 +395,8 @@ pub fn read(path: &Path) -> Result<LabelMap, String> {
 /// read).
 fn header_text(path: &Path) -> Option<String> {
     use std::io::Read;
+    // Opening a FIFO would block, and /dev/zero never ends.
+    crate::io::check_regular_file(path).ok()?;
     let mut file = std::fs::File::open(path).ok()?;
     let mut head = Vec::new();
     let mut chunk = 64 << 10;
@@ -295,16 +415,19 @@ fn header_text(path: &Path) -> Option<String> {
     Some(String::from_utf8_lossy(&head).into_owned())
 }
 
-/// Voxels the header declares, all layers (see [`super::declared_voxels`]).
-pub(super) fn declared_voxels(path: &Path) -> Option<u64> {
-    let text = header_text(path)?;
-    let sizes = text
-        .lines()
-        .find_map(|l| l.trim_end_matches('\r').strip_prefix("sizes:"))?;
-    sizes
-        .split_whitespace()
-        .map(|s| s.parse::<u64>().ok())
-        .try_fold(1u64, |n, s| n.checked_mul(s?))
+/// What the header of the NRRD at `path` declares, read from the header alone (the data is not
+/// touched).
+pub(super) fn peek(path: &Path) -> Result<LabelMapHeader, String> {
+    let text = header_text(path).ok_or("cannot read the header")?;
+    let mut bytes = text.into_bytes();
+    bytes.extend_from_slice(b"\n\n");
+    let (text, _) = split_header(&bytes)?;
+    let h = parse_header(text)?;
+    Ok(LabelMapHeader {
+        dims: h.dims,
+        n_layers: h.n_layers,
+        voxel_type: h.voxel_type,
+    })
 }
 
 /// The segments a header names (3D Slicer's fields), read from the header alone.

@@ -748,3 +748,57 @@ fn a_lone_pimple_is_flattened_or_kept_as_asked() {
     );
     assert!(smooth < 0.65 * kept, "{smooth} vs {kept}");
 }
+
+/// The cheap count the memory budget uses is exact: the cells where labels meet, and the
+/// triangles of all the labels' surfaces, as the extraction then makes them, on volumes from
+/// sparse to pure noise with up to 40 labels.
+#[test]
+fn the_surface_size_count_matches_the_extraction() {
+    let mut rng = fastrand::Rng::with_seed(21);
+    for round in 0..40 {
+        let dims = [rng.usize(1..14), rng.usize(1..14), rng.usize(1..10)];
+        let n_labels = [1, 2, 3, 8, 40][round % 5];
+        let fill = [0.05, 0.3, 0.7, 1.0][round % 4];
+        let n: usize = dims.iter().product();
+        let values: Vec<i64> = (0..n)
+            .map(|_| {
+                if rng.f64() < fill {
+                    rng.i64(1..=n_labels)
+                } else {
+                    0
+                }
+            })
+            .collect();
+        let grid = Grid::axis_aligned([0.7, 0.9, 2.5], [0.0; 3], Space::Lps);
+        let v = LabelVolume::from_values(dims, grid, values.into_iter()).unwrap();
+        let size = destair::extract::surface_size(&v);
+        let all = interfaces(&v);
+        let made: u64 = label_surfaces(&v, &all)
+            .iter()
+            .map(|s| s.mesh.n_triangles() as u64)
+            .sum();
+        assert_eq!(size.triangles, made, "round {round} {dims:?}");
+        // Cells (with the one-voxel pad of background) whose corners hold more than one label.
+        let at = |i: i64, j: i64, k: i64| -> u16 {
+            let [nx, ny, nz] = v.dims.map(|d| d as i64);
+            if i < 0 || j < 0 || k < 0 || i >= nx || j >= ny || k >= nz {
+                0
+            } else {
+                v.at(i as usize, j as usize, k as usize)
+            }
+        };
+        let mut mixed = 0;
+        for k in -1..dims[2] as i64 {
+            for j in -1..dims[1] as i64 {
+                for i in -1..dims[0] as i64 {
+                    let first = at(i, j, k);
+                    if (0..8).any(|c| at(i + (c & 1), j + (c >> 1 & 1), k + (c >> 2 & 1)) != first)
+                    {
+                        mixed += 1;
+                    }
+                }
+            }
+        }
+        assert_eq!(size.interface_cells, mixed, "round {round}");
+    }
+}

@@ -676,3 +676,37 @@ surface = "binary"
         stderr(&out)
     );
 }
+
+/// A small map with 1,000 random labels (64 KB) is refused at once by `max_labels` (default
+/// 255), with the reason; raising the limit in the config admits its labels.
+#[test]
+fn a_map_with_more_labels_than_allowed_fails_at_once() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let mut rng = fastrand::Rng::with_seed(5);
+    let grid = Grid::axis_aligned([1.0; 3], [0.0; 3], Space::Ras);
+    let v = LabelVolume::from_values(
+        [32, 32, 32],
+        grid,
+        (0..32 * 32 * 32).map(|i| if i < 1000 { i + 1 } else { rng.i64(0..=1000) }),
+    )
+    .unwrap();
+    assert_eq!(v.labels.len(), 1000);
+    write(
+        &dir.join("cases/c/seg.nii"),
+        &destair::volume::nifti::encode(&v, false).unwrap(),
+    );
+    let c = config(
+        dir,
+        "[input]\nroots = [\"cases\"]\ncase_depth = 1\n[output]\nroot = \"out\"\n",
+    );
+    let started = std::time::Instant::now();
+    let run = destair(&["run", c.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(3), "{err}");
+    assert!(
+        err.contains("max_labels") && err.contains("seg.nii"),
+        "{err}"
+    );
+    assert!(started.elapsed().as_secs_f64() < 30.0);
+}

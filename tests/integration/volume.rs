@@ -438,3 +438,218 @@ fn the_labelmap_neck_phantom_has_touching_structures_and_can_be_oblique() {
         assert_eq!(info["labels"][1]["name"], "vein");
     }
 }
+
+/// A detached header (`.nhdr`) names its data file; destair reads it only when it resolves
+/// (symlinks followed) to a regular file beside the header or below it, of exactly the size the
+/// header implies. A header from someone else's case folder cannot make it read any other file
+/// (whose bytes would come back as labels in the surfaces and reports).
+#[test]
+fn detached_data_files_stay_beside_their_header() {
+    let dir = tempfile::tempdir().unwrap();
+    let case = dir.path().join("case");
+    std::fs::create_dir_all(case.join("data")).unwrap();
+    let secret = dir.path().join("secret.raw");
+    std::fs::write(&secret, [1u8, 2, 3, 4, 5, 6, 7, 8]).unwrap();
+    std::os::unix::fs::symlink(&secret, case.join("link.raw")).unwrap();
+    std::fs::write(case.join("data/v.raw"), [0u8, 0, 5, 5, 5, 0, 0, 0]).unwrap();
+    std::fs::write(case.join("short.raw"), [0u8; 7]).unwrap();
+    let header = |data: &str| {
+        format!("NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nspace: LPS\nspace directions: (1,0,0) (0,1,0) (0,0,2)\nencoding: raw\ndata file: {data}\n")
+    };
+    let path = case.join("v.nhdr");
+    let outside = secret.to_str().unwrap().to_string();
+    for (data, says) in [
+        ("../secret.raw", "outside the header's folder"),
+        (outside.as_str(), "outside the header's folder"),
+        ("link.raw", "outside the header's folder"),
+        ("/proc/self/environ", "outside the header's folder"),
+        ("data/../../secret.raw", "outside the header's folder"),
+        ("short.raw", "holds 7 bytes; the header says 8"),
+        ("missing.raw", "missing.raw"),
+        ("data", "is a folder"),
+    ] {
+        std::fs::write(&path, header(data)).unwrap();
+        let err = read_label_map(&path, Space::Lps).unwrap_err().to_string();
+        assert!(
+            err.contains("v.nhdr") && err.contains(says),
+            "{data}: {err}"
+        );
+    }
+    // Beside or below the header it reads, and the map names the resolved file.
+    std::fs::write(&path, header("data/v.raw")).unwrap();
+    let map = read_label_map(&path, Space::Lps).unwrap();
+    assert_eq!(map.layers[0].labels[0].n_voxels, 3);
+    assert_eq!(
+        map.data_file.unwrap(),
+        case.join("data/v.raw").canonicalize().unwrap()
+    );
+}
+
+/// A cohort case holding a `.nhdr` that points outside the case fails that case with the
+/// reason, and nothing of the file it points to reaches an output.
+#[test]
+fn a_case_whose_header_points_outside_it_fails_and_discloses_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let secret = dir.path().join("secret.txt");
+    // 8 bytes of text: as voxels they would become labels 0x41.. and surfaces around them.
+    std::fs::write(&secret, b"ABCDEFGH").unwrap();
+    let case = dir.path().join("cases/c");
+    std::fs::create_dir_all(&case).unwrap();
+    std::fs::write(
+        case.join("seg.nhdr"),
+        "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nspace: LPS\nspace directions: (1,0,0) (0,1,0) (0,0,2)\nencoding: raw\ndata file: ../../secret.txt\n",
+    )
+    .unwrap();
+    let config = dir.path().join("c.toml");
+    std::fs::write(
+        &config,
+        "[input]\nroots = [\"cases\"]\ncase_depth = 1\n[output]\nroot = \"out\"\n",
+    )
+    .unwrap();
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_destair"))
+        .args(["run", config.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(3), "{err}");
+    assert!(err.contains("outside the header's folder"), "{err}");
+    let report = std::fs::read_to_string(dir.path().join("out/c/report.json")).unwrap();
+    assert!(
+        report.contains("\"failed\"") && !report.contains("label_65"),
+        "{report}"
+    );
+    let written: Vec<_> = std::fs::read_dir(dir.path().join("out/c"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".ply") || n.ends_with(".stl"))
+        .collect();
+    assert!(written.is_empty(), "{written:?}");
+}
+
+/// NIfTI geometry that no scan has is refused with what is wrong: a qform quaternion longer
+/// than 1 (its "rotation" scales voxels to 75 mm), a negative or zero voxel size, spacings of
+/// 1e-40 mm or 5000 mm; a wider range can be asked for.
+#[test]
+fn label_map_geometry_that_is_no_scan_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let v = LabelVolume::from_values(
+        [3, 3, 3],
+        Grid::axis_aligned([1.0, 1.0, 2.0], [0.0; 3], Space::Ras),
+        (0..27).map(|i| (i % 2) as i64),
+    )
+    .unwrap();
+    let good = nifti::encode(&v, false).unwrap();
+    let path = dir.path().join("g.nii");
+    let put = |b: &mut Vec<u8>, at: usize, x: f32| b[at..at + 4].copy_from_slice(&x.to_le_bytes());
+    let qform_only = |b: &mut Vec<u8>| b[254..256].copy_from_slice(&0i16.to_le_bytes());
+    let mut cases: Vec<(&str, Vec<u8>, &str)> = Vec::new();
+    let mut q = good.clone();
+    qform_only(&mut q);
+    put(&mut q, 256, 1.0);
+    put(&mut q, 260, 1.0);
+    cases.push(("non-unit quaternion", q, "longer than 1"));
+    let mut q = good.clone();
+    qform_only(&mut q);
+    put(&mut q, 80, -1.0);
+    cases.push(("negative pixdim", q, "pixdim[1]"));
+    let mut q = good.clone();
+    qform_only(&mut q);
+    put(&mut q, 84, 0.0);
+    cases.push(("zero pixdim", q, "pixdim[2]"));
+    let mut tiny = good.clone();
+    for (at, x) in [(280, 1e-40f32), (300, 1e-40), (320, 1e-40)] {
+        put(&mut tiny, at, x);
+    }
+    cases.push(("1e-40 mm", tiny, "outside the 0.001 to 1000 mm"));
+    let mut huge = good.clone();
+    put(&mut huge, 320, 5000.0);
+    cases.push(("5000 mm", huge.clone(), "outside the 0.001 to 1000 mm"));
+    for (what, bytes, says) in cases {
+        std::fs::write(&path, &bytes).unwrap();
+        let err = read_label_map(&path, Space::Lps).unwrap_err().to_string();
+        assert!(err.contains("g.nii") && err.contains(says), "{what}: {err}");
+    }
+    // The range is a default, not a law.
+    std::fs::write(&path, &huge).unwrap();
+    let wide = destair::volume::LabelMapLimits {
+        spacing_mm: [1e-3, 1e4],
+        ..Default::default()
+    };
+    let map = destair::volume::read_label_map_within(&path, Space::Lps, &wide).unwrap();
+    assert_eq!(map.layers[0].grid.spacing()[2], 5000.0);
+    // The same for NRRD spacings.
+    let nrrd_path = dir.path().join("g.nrrd");
+    let mut b = b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nspacings: 1 1 1e-40\nencoding: raw\n\n".to_vec();
+    b.extend([1u8; 8]);
+    std::fs::write(&nrrd_path, &b).unwrap();
+    let err = read_label_map(&nrrd_path, Space::Lps)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("outside the 0.001 to 1000 mm"), "{err}");
+}
+
+/// What a map may hold is checked from its header before any voxel is inflated, and its labels
+/// before the voxels are mapped: a 4-gigavoxel header fails at once whatever its data, and a
+/// map with more labels than allowed names the limit.
+#[test]
+fn label_maps_beyond_their_limits_are_refused_before_the_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("big.nrrd");
+    // 2048 x 2048 x 1024 declared over 8 bytes of data.
+    let mut b = b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2048 2048 1024\nspacings: 1 1 1\nencoding: raw\n\n".to_vec();
+    b.extend([0u8; 8]);
+    std::fs::write(&path, &b).unwrap();
+    let started = std::time::Instant::now();
+    let err = read_label_map(&path, Space::Lps).unwrap_err().to_string();
+    assert!(err.contains("max_label_voxels"), "{err}");
+    assert!(started.elapsed().as_secs_f64() < 1.0);
+    let header = destair::volume::read_header(&path).unwrap();
+    assert_eq!(header.n_voxels(), 1 << 32);
+    assert_eq!(header.bytes_to_read(), 3 << 32);
+    // 300 labels: more than the default 255, in 16- and 32-bit maps.
+    let grid = Grid::axis_aligned([1.0; 3], [0.0; 3], Space::Ras);
+    let v = LabelVolume::from_values([10, 10, 3], grid, (0..300).map(|i| i as i64 + 1)).unwrap();
+    for (name, bytes) in [
+        ("many.nii", nifti::encode(&v, false).unwrap()),
+        (
+            "many.nrrd",
+            nrrd::encode(std::slice::from_ref(&v), &[], false).unwrap(),
+        ),
+    ] {
+        let path = dir.path().join(name);
+        std::fs::write(&path, bytes).unwrap();
+        let err = read_label_map(&path, Space::Lps).unwrap_err().to_string();
+        assert!(err.contains("max_labels") && err.contains(name), "{err}");
+        let more = destair::volume::LabelMapLimits {
+            max_labels: 300,
+            ..Default::default()
+        };
+        let map = destair::volume::read_label_map_within(&path, Space::Lps, &more).unwrap();
+        assert_eq!(map.layers[0].labels.len(), 300);
+    }
+}
+
+/// Two Slicer segments naming one label differently: which is right cannot be known, so the
+/// label keeps its neutral name and the map says why.
+#[test]
+fn conflicting_segment_names_leave_the_label_unnamed_with_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("s.seg.nrrd");
+    let mut b = b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 1\nspace: LPS\nspace directions: (1,0,0) (0,1,0) (0,0,3)\nencoding: raw\nSegment0_Name:=liver\nSegment0_LabelValue:=1\nSegment0_Layer:=0\nSegment1_Name:=spleen\nSegment1_LabelValue:=1\nSegment1_Layer:=0\nSegment2_Name:=kidney\nSegment2_LabelValue:=2\nSegment2_Layer:=0\n\n".to_vec();
+    b.extend([0u8, 1, 2, 1]);
+    std::fs::write(&path, &b).unwrap();
+    let map = read_label_map(&path, Space::Lps).unwrap();
+    let names: Vec<&str> = map.layers[0]
+        .labels
+        .iter()
+        .map(|l| l.name.as_str())
+        .collect();
+    assert_eq!(names, ["label_1", "kidney"]);
+    assert!(
+        map.warnings
+            .iter()
+            .any(|w| w.contains("\"liver\"") && w.contains("\"spleen\"")),
+        "{:?}",
+        map.warnings
+    );
+}

@@ -33,9 +33,17 @@ fn the_table_path_matches_the_general_one_for_every_type_and_layout() {
                     .map(|_| if rng.bool() { 0 } else { rng.u8(..) & 0x83 })
                     .collect();
                 for first in 0..stride {
-                    let fast =
-                        LabelVolume::from_raw(dims, g, &bytes, t, big, (first, stride), None)
-                            .unwrap();
+                    let fast = LabelVolume::from_raw(
+                        dims,
+                        g,
+                        &bytes,
+                        t,
+                        big,
+                        (first, stride),
+                        None,
+                        u16::MAX as usize,
+                    )
+                    .unwrap();
                     let values = t.values(&bytes, big).skip(first).step_by(stride).take(n);
                     let slow = LabelVolume::from_values(dims, g, values).unwrap();
                     assert_eq!(fast, slow, "{t:?} big {big} stride {stride}");
