@@ -48,7 +48,25 @@ pub struct CasesFailed(pub String);
 #[error("{0}")]
 pub struct Rejected(pub String);
 
-/// The exit code for an error: 2 usage, 3 bad input or failed cases, 128 + n signals, else 1.
+/// An error with its causes, each said once: a cause whose text its outer error already
+/// holds (`x.ply: cannot write: No space left` over `No space left`) is not repeated.
+pub fn message(e: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if out.contains(&text) {
+            continue;
+        }
+        if !out.is_empty() {
+            out.push_str(": ");
+        }
+        out.push_str(&text);
+    }
+    out
+}
+
+/// The exit code for an error: 2 usage, 3 bad input, failed cases or outputs that cannot be
+/// written, 128 + n signals, else 1.
 pub fn exit_code(e: &anyhow::Error) -> u8 {
     if let Some(Interrupted(signal)) = e.downcast_ref::<Interrupted>() {
         128 + *signal as u8
@@ -60,6 +78,10 @@ pub fn exit_code(e: &anyhow::Error) -> u8 {
         || e.downcast_ref::<InputError>().is_some()
         || e.downcast_ref::<LabelMapInputError>().is_some()
         || e.downcast_ref::<Rejected>().is_some()
+        || e.chain().any(|c| {
+            c.downcast_ref::<destair::io::WriteError>().is_some()
+                || c.downcast_ref::<destair::volume::LabelMapError>().is_some()
+        })
     {
         3
     } else {
@@ -71,8 +93,9 @@ pub fn exit_code(e: &anyhow::Error) -> u8 {
 /// the threads costs more than they can give (2000 threads made a 12 KB inspect take 19 s).
 const MAX_THREADS_PER_CORE: usize = 4;
 
-/// Sizes the rayon pool: --threads (or DESTAIR_THREADS), then RAYON_NUM_THREADS (which rayon
-/// reads itself), then SLURM_CPUS_PER_TASK, then the core count.
+/// Sizes the rayon pool: --threads (or DESTAIR_THREADS), then RAYON_NUM_THREADS, then
+/// SLURM_CPUS_PER_TASK, then the core count. Every source is checked the same way (rayon
+/// would take any RAYON_NUM_THREADS, and 20 000 threads abort the process).
 pub fn configure_threads(threads: Option<usize>) -> Result<(), UsageError> {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let limit = MAX_THREADS_PER_CORE * cores;
@@ -84,17 +107,28 @@ pub fn configure_threads(threads: Option<usize>) -> Result<(), UsageError> {
         }
         Ok(n)
     };
+    let from_env = |name: &str| -> Result<Option<usize>, UsageError> {
+        match std::env::var(name) {
+            Ok(s) => {
+                let n = s
+                    .trim()
+                    .parse::<usize>()
+                    .map_err(|_| UsageError(format!("{name} = {s:?} is not a number")))?;
+                Ok(Some(check(n, name)?))
+            }
+            Err(std::env::VarError::NotPresent) => Ok(None),
+            Err(std::env::VarError::NotUnicode(s)) => {
+                Err(UsageError(format!("{name} = {s:?} is not a number")))
+            }
+        }
+    };
     let n = match threads {
         Some(n) => Some(check(n, "--threads (or DESTAIR_THREADS)")?),
-        None if std::env::var_os("RAYON_NUM_THREADS").is_some() => None,
-        None => match std::env::var("SLURM_CPUS_PER_TASK") {
-            Ok(s) => {
-                let n = s.trim().parse::<usize>().map_err(|_| {
-                    UsageError(format!("SLURM_CPUS_PER_TASK = {s:?} is not a number"))
-                })?;
-                Some(check(n, "SLURM_CPUS_PER_TASK")?)
-            }
-            Err(_) => None,
+        // RAYON_NUM_THREADS=0 means rayon's default (every core), as rayon documents it.
+        None if std::env::var("RAYON_NUM_THREADS").is_ok_and(|s| s.trim() == "0") => None,
+        None => match from_env("RAYON_NUM_THREADS")? {
+            Some(n) => Some(n),
+            None => from_env("SLURM_CPUS_PER_TASK")?,
         },
     };
     if let Some(n) = n {

@@ -4,7 +4,7 @@
 use super::{clock, load_plan, CasesFailed, Interrupted, UsageError};
 use destair::job::discover::protected_inputs;
 use destair::job::outputs::{orphan_case_dirs, prune_case_dir};
-use destair::job::paths::check_output_root;
+use destair::job::paths::{check_output_outside_cases, check_output_root};
 use destair::job::pipeline::{Event, RunOptions};
 use destair::job::summary::CohortNotes;
 use destair::job::{CaseInput, Discovery, LockMode, LockScope, OutputLock, Plan, Shard, Wait};
@@ -152,6 +152,9 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     }
     let signals = Signals::install()?;
     let found = discover_all(&plan, &args.config)?;
+    let case_dirs: Vec<&std::path::Path> = found.cases.iter().map(|c| c.dir.as_path()).collect();
+    check_output_outside_cases(&plan.output_root, &case_dirs, |d| holds_inputs(&plan, d))
+        .map_err(UsageError)?;
     let notes = CohortNotes::of(&found);
     let all = found.cases;
     let protected = protected_inputs(&all, &plan.roots);
@@ -229,7 +232,29 @@ pub fn exec_case(args: CaseArgs) -> anyhow::Result<()> {
     if !dir.is_dir() {
         return Err(UsageError(format!("{}: not a folder", args.case_dir.display())).into());
     }
-    check_output_root(&args.out, std::slice::from_ref(&dir)).map_err(UsageError)?;
+    let mut roots = plan.roots.clone();
+    roots.push(dir.clone());
+    check_output_root(&args.out, &roots).map_err(UsageError)?;
+    // The output root must not be (or lie in) this case, nor a case folder of the config's
+    // roots (the folders between a root and the output root are looked at), nor hold inputs.
+    let out = destair::job::paths::canonical(&args.out);
+    let mut case_dirs: Vec<std::path::PathBuf> = vec![dir.clone()];
+    for root in &plan.roots {
+        let root = destair::job::paths::canonical(root);
+        let mut at = out.as_path();
+        while at.starts_with(&root) && at != root {
+            if holds_inputs(&plan, at) && !destair::job::lock::is_output_root(at) {
+                case_dirs.push(at.to_path_buf());
+            }
+            match at.parent() {
+                Some(p) => at = p,
+                None => break,
+            }
+        }
+    }
+    let case_refs: Vec<&std::path::Path> = case_dirs.iter().map(|d| d.as_path()).collect();
+    check_output_outside_cases(&args.out, &case_refs, |d| holds_inputs(&plan, d))
+        .map_err(UsageError)?;
     let name = dir
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
@@ -257,6 +282,12 @@ pub fn exec_case(args: CaseArgs) -> anyhow::Result<()> {
         protected: protected_inputs([&case], std::slice::from_ref(&dir)),
     };
     run_cases(&plan, vec![case], &options, None, &lock, &signals)
+}
+
+/// Whether a folder directly holds files the plan takes as inputs (meshes or label maps).
+fn holds_inputs(plan: &Plan, dir: &std::path::Path) -> bool {
+    destair::job::discover::case_at(plan, dir, String::new(), &mut Vec::new())
+        .is_some_and(|c| !c.meshes.is_empty() || !c.label_maps.is_empty())
 }
 
 fn plural(n: usize, one: &str, many: &str) -> String {
@@ -294,12 +325,14 @@ pub fn run_cases(
     let mut failed_structures = 0usize;
     let mut disk_full_told = false;
     eprintln!(
-        "[{}] destair: {}, {} worker{}, {} threads",
+        "[{}] destair: {}, {} worker{}, {} threads, memory budget {} MB ({})",
         clock(),
         plural(total, "case", "cases"),
         plan.workers,
         if plan.workers == 1 { "" } else { "s" },
-        rayon::current_num_threads()
+        rayon::current_num_threads(),
+        plan.memory_budget_bytes.div_ceil(1 << 20),
+        plan.memory_budget_source
     );
     // A live bar on a terminal; off a terminal (cluster logs) indicatif draws nothing, so
     // plain timestamped lines every few seconds instead.

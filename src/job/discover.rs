@@ -10,7 +10,8 @@ use std::path::{Path, PathBuf};
 /// One case: a folder and its structure meshes.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 pub struct CaseInput {
-    /// Path of the case folder relative to its root, with `/` separators ("." for the root).
+    /// Path of the case folder relative to its root, with `/` separators (the root's own folder
+    /// name when the root is itself a case).
     pub id: String,
     pub dir: PathBuf,
     /// (structure name = file stem, file), sorted by name.
@@ -201,11 +202,15 @@ fn unreadable_case(dir: &Path, id: String, error: String) -> CaseInput {
     }
 }
 
-/// Case id of a folder below a root: its relative path with `/` separators ("." for the root).
+/// Case id of a folder below a root: its relative path with `/` separators. A root that is
+/// itself a case is named after its own folder, as it would be one level up (its outputs go to
+/// their own folder, not among the cohort's summary files).
 fn case_id(root: &Path, dir: &Path) -> String {
     let rel = dir.strip_prefix(root).unwrap_or(dir);
     if rel.as_os_str().is_empty() {
-        ".".to_string()
+        super::paths::canonical(root)
+            .file_name()
+            .map_or_else(|| "root".to_string(), |n| n.to_string_lossy().into_owned())
     } else {
         rel.components()
             .map(|c| c.as_os_str().to_string_lossy().into_owned())

@@ -87,14 +87,21 @@ pub fn check_output_root(output_root: &Path, roots: &[PathBuf]) -> Result<(), St
     let out = canonical(output_root);
     for root in roots {
         let r = canonical(root);
-        if r == out {
+        // By identity too: a bind mount (or another mount) of the input root is the same
+        // folder under a path that no spelling rule relates to it.
+        let same_folder = matches!(
+            (crate::io::file_id(&r), crate::io::file_id(&out)),
+            (Some(a), Some(b)) if a == b
+        );
+        if r == out || same_folder {
             return Err(format!(
                 "the output root {} is the input root {} (the same folder): outputs would overwrite the inputs; choose another [output] root",
                 output_root.display(),
                 root.display()
             ));
         }
-        if r.starts_with(&out) {
+        let holds = crate::io::file_id(&out).is_some_and(|id| identities_up(&r).contains(&id));
+        if r.starts_with(&out) || holds {
             return Err(format!(
                 "the output root {} holds the input root {}: choose an output folder that does not contain the inputs",
                 output_root.display(),
@@ -107,6 +114,55 @@ pub fn check_output_root(output_root: &Path, roots: &[PathBuf]) -> Result<(), St
                 root.display()
             ));
         }
+    }
+    Ok(())
+}
+
+/// The identities (device, inode) of an existing path and of every folder above it, nearest
+/// first; empty for a path that does not exist.
+fn identities_up(path: &Path) -> Vec<(u64, u64)> {
+    let mut out = Vec::new();
+    let mut at = Some(path);
+    while let Some(p) = at {
+        if let Some(id) = crate::io::file_id(p) {
+            out.push(id);
+        }
+        at = p.parent();
+    }
+    out
+}
+
+/// Checks an output root against the case folders: it must not be one, nor lie inside one
+/// (compared by identity, so symlinks and bind mounts count), since its outputs would become
+/// that case's inputs and its marker would hide the case from every later run. `cases` are the
+/// case folders discovery found; `holds_inputs` says whether a folder directly holds files the
+/// configuration takes as inputs (for an output root that is a case folder of no root, as
+/// `run-case --out` may be given).
+pub fn check_output_outside_cases(
+    output_root: &Path,
+    cases: &[&Path],
+    holds_inputs: impl Fn(&Path) -> bool,
+) -> Result<(), String> {
+    let out = canonical(output_root);
+    let up = identities_up(&out);
+    for case in cases {
+        let Some(id) = crate::io::file_id(case) else {
+            continue;
+        };
+        if let Some(at) = up.iter().position(|u| *u == id) {
+            return Err(format!(
+                "the output root {} {} the case folder {}: its outputs would be written among that case's inputs; choose an output folder outside every case",
+                output_root.display(),
+                if at == 0 { "is" } else { "lies inside" },
+                case.display()
+            ));
+        }
+    }
+    if out.is_dir() && !is_output_root(&out) && holds_inputs(&out) {
+        return Err(format!(
+            "the output root {} holds input files (meshes or label maps the configuration selects) and is not a destair output folder: choose an empty or new folder",
+            output_root.display()
+        ));
     }
     Ok(())
 }

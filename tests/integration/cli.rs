@@ -988,3 +988,34 @@ fn compare_gives_a_scattered_pair_the_measures_of_the_unscattered_one() {
         assert!((a - b).abs() <= 1e-12 * a.abs(), "{path}: {a} against {b}");
     }
 }
+
+/// An output that cannot be written (a name too long for the filesystem; a full disk alike)
+/// is bad input to the command, exit 3, with the file named and the reason said once; not an
+/// internal error.
+#[test]
+fn outputs_that_cannot_be_written_exit_3_naming_the_file_once() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    common::cohort::destair_ok(&["phantom", "neck", "--out", dir.to_str().unwrap()]);
+    let long = dir.join(format!("{}.ply", "a".repeat(300)));
+    let run = common::cohort::smooth(&dir.join("tumor.ply"), &long, "laplace", &[]);
+    let err = common::cohort::stderr(&run);
+    assert_eq!(run.status.code(), Some(3), "{err}");
+    assert!(err.contains(&"a".repeat(300)), "{err}");
+    assert_eq!(err.matches("File name too long").count(), 1, "{err}");
+    // A Slicer segment whose name makes a file name too long: extract says which file.
+    let seg = dir.join("long.seg.nrrd");
+    let mut b = format!("NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nspace: LPS\nspace directions: (1,0,0) (0,1,0) (0,0,2)\nencoding: raw\nSegment0_Name:={}\nSegment0_LabelValue:=1\nSegment0_Layer:=0\n\n", "b".repeat(300)).into_bytes();
+    b.extend([1u8, 1, 0, 0, 0, 0, 0, 0]);
+    std::fs::write(&seg, b).unwrap();
+    let run = common::cohort::destair(&[
+        "extract",
+        seg.to_str().unwrap(),
+        "--out",
+        dir.join("ex").to_str().unwrap(),
+    ]);
+    let err = common::cohort::stderr(&run);
+    assert_eq!(run.status.code(), Some(3), "{err}");
+    assert!(err.contains(&"b".repeat(300)), "{err}");
+    assert_eq!(err.matches("File name too long").count(), 1, "{err}");
+}

@@ -761,3 +761,211 @@ fn randomized_soak_keeps_inputs_and_ends_with_clean_run_bytes() {
         if can_mount { "" } else { " (no tmpfs here)" }
     );
 }
+
+/// A case a shard has taken up stays locked until its outputs are written: `run-case` for it
+/// meanwhile is told the case is busy (exit 2) instead of computing it alongside.
+#[test]
+fn run_case_does_not_compute_a_case_a_shard_is_computing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let c = slow_cohort(dir, 100_000, 100_000);
+    let c = c.to_str().unwrap();
+    let mut shard = spawn(&["run", c, "--shard", "0/1"]);
+    {
+        // Its shard line, then the first line of every run, once it holds its folder.
+        use std::io::BufRead;
+        let mut lines = std::io::BufReader::new(shard.stderr.take().unwrap()).lines();
+        assert!(lines.any(|l| l.unwrap().contains("destair:")));
+        std::thread::spawn(move || lines.for_each(drop));
+    }
+    // Until the shard's loader holds the case (it reads the case first).
+    let out = dir.join("out");
+    let probe = destair::job::OutputLock::open(&out).unwrap();
+    let scope = destair::job::LockScope::Case("big".into());
+    let started = Instant::now();
+    while probe
+        .lock(
+            &scope,
+            destair::job::LockMode::Exclusive,
+            destair::job::Wait::No,
+        )
+        .is_ok()
+    {
+        probe.unlock(&scope);
+        assert!(
+            started.elapsed() < Duration::from_secs(30),
+            "never taken up"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let mut case = spawn(&[
+        "run-case",
+        dir.join("cases/big").to_str().unwrap(),
+        "--config",
+        c,
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let started = Instant::now();
+    let status = loop {
+        if let Some(s) = case.try_wait().unwrap() {
+            break Some(s);
+        }
+        if started.elapsed() > Duration::from_secs(10) {
+            break None;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let Some(status) = status else {
+        signal(&case, libc::SIGKILL);
+        signal(&shard, libc::SIGKILL);
+        panic!("run-case computed the case alongside the shard");
+    };
+    let mut err = String::new();
+    std::io::Read::read_to_string(&mut case.stderr.take().unwrap(), &mut err).unwrap();
+    assert_eq!(status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("the outputs of case \"big\" is in use by another destair run")
+            || err.contains("in use by another destair run"),
+        "{err}"
+    );
+    signal(&shard, libc::SIGTERM);
+    assert_eq!(shard.wait().unwrap().code(), Some(143));
+}
+
+/// An output root that is a case folder, lies inside one, or is one under another name (a
+/// symlink; a bind mount where one can be made) is refused before anything is written: its
+/// outputs would land among that case's inputs and its marker would hide the case for good.
+#[test]
+fn output_roots_in_case_folders_are_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    cohort(dir, 2, false);
+    std::os::unix::fs::symlink(dir.join("cases/case-000"), dir.join("caselink")).unwrap();
+    let before = hashes(&dir.join("cases"));
+    for out in [
+        "cases/case-000",
+        "cases/case-000/results",
+        "caselink",
+        "caselink/results",
+    ] {
+        let c = write_config(dir, "c.toml", &config_with(out, ""));
+        let run = destair(&["run", c.to_str().unwrap()]);
+        let err = stderr(&run);
+        assert_eq!(run.status.code(), Some(2), "{out}: {err}");
+        assert!(
+            err.contains("case folder") || err.contains("holds input files"),
+            "{out}: {err}"
+        );
+    }
+    let c = write_config(dir, "c.toml", common::cohort::CONFIG);
+    for out in [
+        "cases/case-001",
+        "cases/case-001/results",
+        "caselink",
+        "cases/case-000/x",
+    ] {
+        let run = destair(&[
+            "run-case",
+            dir.join("cases/case-000").to_str().unwrap(),
+            "--config",
+            c.to_str().unwrap(),
+            "--out",
+            dir.join(out).to_str().unwrap(),
+        ]);
+        let err = stderr(&run);
+        assert_eq!(run.status.code(), Some(2), "{out}: {err}");
+    }
+    // A folder of meshes of no root is somebody's inputs too.
+    std::fs::create_dir_all(dir.join("elsewhere")).unwrap();
+    std::fs::copy(
+        dir.join("cases/case-001/tumor.ply"),
+        dir.join("elsewhere/tumor.ply"),
+    )
+    .unwrap();
+    let run = destair(&[
+        "run-case",
+        dir.join("cases/case-000").to_str().unwrap(),
+        "--config",
+        c.to_str().unwrap(),
+        "--out",
+        dir.join("elsewhere").to_str().unwrap(),
+    ]);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    assert!(!dir.join("elsewhere/.destair-output").exists());
+    assert_eq!(hashes(&dir.join("cases")), before, "inputs changed");
+    // The input root bind-mounted as the output root: the same folder by identity.
+    let bind = dir.join("bind");
+    std::fs::create_dir_all(&bind).unwrap();
+    let mounted = Command::new("mount")
+        .args([
+            "--bind",
+            dir.join("cases").to_str().unwrap(),
+            bind.to_str().unwrap(),
+        ])
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    if !mounted {
+        eprintln!("skipped the bind-mount part: cannot mount here");
+        return;
+    }
+    let c = write_config(dir, "c.toml", &config_with("bind", ""));
+    let run = destair(&["run", c.to_str().unwrap()]);
+    umount(&bind);
+    assert_eq!(run.status.code(), Some(2), "{}", stderr(&run));
+    assert!(stderr(&run).contains("input root"), "{}", stderr(&run));
+    assert!(!dir.join("cases/.destair-output").exists());
+    assert_eq!(hashes(&dir.join("cases")), before, "inputs changed");
+}
+
+/// Thread counts are checked whatever their source: RAYON_NUM_THREADS=20000 is refused at
+/// once (rayon would start them, taking minutes, and abort), 0 keeps rayon's meaning (every
+/// core).
+#[test]
+fn thread_counts_from_the_environment_are_checked() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mesh = tmp.path().join("t.ply");
+    destair_ok(&["phantom", "neck", "--out", tmp.path().to_str().unwrap()]);
+    std::fs::copy(tmp.path().join("tumor.ply"), &mesh).unwrap();
+    for (value, ok) in [("20000", false), ("lots", false), ("0", true), ("2", true)] {
+        let started = Instant::now();
+        let run = Command::new(env!("CARGO_BIN_EXE_destair"))
+            .args(["inspect", mesh.to_str().unwrap()])
+            .env("RAYON_NUM_THREADS", value)
+            .output()
+            .unwrap();
+        assert_eq!(run.status.success(), ok, "{value}: {}", stderr(&run));
+        if !ok {
+            assert_eq!(run.status.code(), Some(2));
+            assert!(
+                stderr(&run).contains("RAYON_NUM_THREADS"),
+                "{}",
+                stderr(&run)
+            );
+        }
+        assert!(started.elapsed() < Duration::from_secs(5), "{value}");
+    }
+}
+
+/// A root that is itself a case is named after its folder, its outputs in a folder of their
+/// own (not a case called "." writing among the cohort's summary files).
+#[test]
+fn a_root_that_is_a_case_is_named_after_its_folder() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    cohort(dir, 1, false);
+    let c = write_config(
+        dir,
+        "one.toml",
+        "[input]\nroots = [\"cases/case-000\"]\n[output]\nroot = \"out\"\n[defaults]\nmethod = \"laplace\"\n",
+    );
+    destair_ok(&["run", c.to_str().unwrap()]);
+    assert!(dir.join("out/case-000/report.json").is_file());
+    assert!(!dir.join("out/report.json").exists());
+    let summary = std::fs::read_to_string(dir.join("out/summary.csv")).unwrap();
+    assert!(
+        summary.contains("case-000") && !summary.contains("\n.,"),
+        "{summary}"
+    );
+}
