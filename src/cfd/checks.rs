@@ -25,6 +25,11 @@ pub struct SurfaceChecks {
     pub components: usize,
     /// Enclosed volume with the faces' orientation (mm³); negative when normals point in.
     pub signed_volume_mm3: f64,
+    /// The volume the wall encloses with its open ends closed by flat fans (mm³), and the
+    /// wall's area (mm²): a surface that encloses nothing (a sheet, a single triangle) is no
+    /// vessel, whatever its patches.
+    pub lumen_volume_mm3: f64,
+    pub area_mm2: f64,
     /// Pairs of faces that cross or touch beyond shared corners and edges.
     pub self_intersections: usize,
     /// Where the first one is (the centre of its first face, mm).
@@ -152,6 +157,10 @@ pub fn narrowing(before: &Mesh, after: &Mesh, topology: &Topology) -> Option<Nar
     })
 }
 
+/// Smallest enclosed volume over area^1.5 a vessel may have: a sphere has 0.094, a tube 1000
+/// diameters long 0.0045; a flat sheet 0.
+const MIN_ENCLOSED_RATIO: f64 = 1e-5;
+
 impl SurfaceChecks {
     /// Why the surface must not be handed over; empty when it passes.
     pub fn failures(&self) -> Vec<String> {
@@ -176,6 +185,14 @@ impl SurfaceChecks {
         }
         if self.components != 1 {
             out.push(format!("{} separate components", self.components));
+        }
+        // A tube a thousand diameters long still has V / A^1.5 = 0.0045.
+        let enough = self.lumen_volume_mm3.abs() > MIN_ENCLOSED_RATIO * self.area_mm2.powf(1.5);
+        if !enough {
+            out.push(format!(
+                "it encloses no lumen ({:.3e} mm³ for {:.3} mm² of wall, its open ends closed): a sheet, not a vessel",
+                self.lumen_volume_mm3, self.area_mm2
+            ));
         }
         if self.signed_volume_mm3 <= 0.0 && self.border_edges == 0 {
             out.push(format!(
@@ -233,6 +250,8 @@ pub fn check_surface(
         inconsistent_edges: topology.inconsistent_edges().len(),
         components: topology.n_components(),
         signed_volume_mm3: signed_volume(mesh),
+        lumen_volume_mm3: crate::metrics::volume::enclosed_volume(mesh, topology).mm3,
+        area_mm2: crate::mesh::geometry::area(mesh),
         self_intersections: intersections.len(),
         first_self_intersection_mm,
         degenerate_triangles: exactly_degenerate_triangles(mesh).len(),

@@ -118,6 +118,55 @@ impl CfdProfile {
     }
 }
 
+/// Refuses flow extensions of `diameters` equivalent diameters whose walls alone would make
+/// more than `budget` faces: each extension's wall (circumference times length) over an
+/// equilateral triangle of the finer of the target edge there and the input's mean edge (an
+/// extension is built at the rim's own edge before any remeshing).
+fn check_extension_size(
+    original: &Mesh,
+    patches: &Patches,
+    diameters: f64,
+    params: &CfdParams,
+    budget: u64,
+) -> Result<(), CfdError> {
+    let area = crate::mesh::geometry::area(original);
+    let input_edge = (4.0 * area / (3f64.sqrt() * original.n_triangles().max(1) as f64)).sqrt();
+    let mut estimated = 0.0;
+    let mut smallest = f64::INFINITY;
+    for p in patches
+        .patches
+        .iter()
+        .filter(|p| params.extend_patches.is_empty() || params.extend_patches.contains(&p.id))
+    {
+        let target = match params.remesh.as_ref().map(|r| (&r.edge, r.clamp_mm)) {
+            Some((crate::remesh::EdgeTarget::Mm(e), _)) => *e,
+            Some((crate::remesh::EdgeTarget::PerRadius(f), (lo, hi))) => {
+                (f * p.diameter_mm / 2.0).clamp(lo, hi)
+            }
+            None => input_edge,
+        };
+        let edge = target.min(input_edge);
+        smallest = smallest.min(edge);
+        let wall = std::f64::consts::PI * p.diameter_mm * diameters * p.diameter_mm;
+        estimated += wall / (3f64.sqrt() / 4.0 * edge * edge);
+    }
+    let within = estimated <= budget as f64;
+    if !within {
+        return Err(CfdError::ExtensionTooLarge {
+            diameters,
+            estimated: if estimated.is_finite() {
+                estimated.round() as u64
+            } else {
+                u64::MAX
+            },
+            edge_mm: smallest,
+            input: original.n_triangles(),
+            limit: budget,
+        });
+    }
+    Ok(())
+}
+
 /// Why a surface was not made ready for a solver.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum CfdError {
@@ -127,6 +176,20 @@ pub enum CfdError {
     Extend(#[from] ExtendError),
     #[error(transparent)]
     Remesh(#[from] RemeshError),
+    #[error(
+        "flow extensions of {diameters} diameters would make about {estimated} faces (edges down \
+         to {edge_mm:.3} mm) for a surface of {input}, more than the {limit} allowed ({} times \
+         its faces, at least {}): shorten them, or ask for longer edges",
+        crate::remesh::sizing::GROWTH_BUDGET,
+        crate::remesh::sizing::MIN_BUDGET
+    )]
+    ExtensionTooLarge {
+        diameters: f64,
+        estimated: u64,
+        edge_mm: f64,
+        input: usize,
+        limit: u64,
+    },
     #[error("the surface fails the cfd checks: {}", .0.join("; "))]
     Checks(Vec<String>),
 }
@@ -225,6 +288,16 @@ pub fn finish_surface(
     let topology = Topology::build(smoothed);
     let narrowed = super::checks::narrowing(original, smoothed, &topology);
     let measured = remeasure_patches(smoothed, &topology, patches.face_ids.clone(), patches);
+    // Work is bounded by the structure as it came in: every step together may make at most
+    // `face_budget` of its faces, which flow extensions count against before they are built.
+    let budget = crate::remesh::sizing::face_budget(original.n_triangles());
+    if let Some(k) = params.flow_extension {
+        check_extension_size(original, &measured, k, params, budget)?;
+    }
+    let remesh_params = params.remesh.map(|mut rp| {
+        rp.max_faces.get_or_insert(budget);
+        rp
+    });
     // Borrowed until a step makes a new mesh; the topology is built once per mesh.
     let (mesh, patches): (Cow<Mesh>, Patches) = match params.flow_extension {
         Some(k) => {
@@ -239,7 +312,7 @@ pub fn finish_surface(
     } else {
         (mesh, patches)
     };
-    let (mesh, patches, topology, target, remeshed) = match &params.remesh {
+    let (mesh, patches, topology, target, remeshed) = match &remesh_params {
         Some(rp) => {
             let started = std::time::Instant::now();
             let r = remesh(&mesh, &patches.face_ids, rp)?;

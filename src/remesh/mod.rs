@@ -56,6 +56,10 @@ pub struct RemeshParams {
     pub iterations: u32,
     /// Smallest and largest edge length (mm) a relative target may ask for.
     pub clamp_mm: (f64, f64),
+    /// Most faces the result may have, estimated before any split (default
+    /// [`sizing::face_budget`] of the surface given; the cfd profile sets it from the
+    /// structure as it was read, so flow extensions do not widen it).
+    pub max_faces: Option<u64>,
 }
 
 impl RemeshParams {
@@ -65,6 +69,7 @@ impl RemeshParams {
             edge: EdgeTarget::Mm(edge_mm),
             iterations: 10,
             clamp_mm: (0.0, f64::INFINITY),
+            max_faces: None,
         }
     }
 }
@@ -248,7 +253,10 @@ pub fn remesh(
             *s = s.min(a);
         }
     }
-    sizing::check_output_size(mesh, &size)?;
+    let limit = params
+        .max_faces
+        .unwrap_or_else(|| sizing::face_budget(mesh.n_triangles()));
+    sizing::check_output_size(mesh, &size, limit)?;
     let reference = Reference::build(mesh, &topology, face_ids, &size);
     let input_size = size.clone();
     let pos: Vec<[f64; 3]> = mesh.positions().iter().map(|p| p.map(f64::from)).collect();

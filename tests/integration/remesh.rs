@@ -179,6 +179,7 @@ fn relative_targets_follow_the_vessel_radius() {
             edge: EdgeTarget::PerRadius(0.3),
             iterations: 10,
             clamp_mm: (0.0, f64::INFINITY),
+            max_faces: None,
         },
     )
     .unwrap();
@@ -232,7 +233,8 @@ fn bad_requests_are_refused() {
             // little below the sphere's).
             assert!((2.6e7..2.95e7).contains(&(estimated as f64)), "{estimated}");
             assert_eq!(input, 5120);
-            assert_eq!(limit, 1 << 21); // the floor for small inputs, above 256 x 5120
+            assert_eq!(limit, 64 * 5120); // above the floor for small inputs, 65536
+            assert_eq!(limit, destair::remesh::sizing::face_budget(5120));
             assert_eq!((smallest_mm, median_mm), (0.01, 0.01));
         }
         other => panic!("{other:?}"),
@@ -281,6 +283,7 @@ fn vessel_radii_are_found_at_staircases_in_any_numbering() {
         edge: EdgeTarget::PerRadius(1.0),
         iterations: 10,
         clamp_mm: (0.0, f64::INFINITY),
+        max_faces: None,
     };
     let r = remesh(mesh, &ids, &params).unwrap();
     let checks = check_surface(
