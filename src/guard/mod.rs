@@ -271,8 +271,10 @@ fn table_reusing(
             before
         }
     };
+    // Pairs in parallel (rows in pair order whatever the threads): a case with many small
+    // structures has many pairs, each too small to keep the threads busy on its own.
     let pairs = near
-        .iter()
+        .par_iter()
         .map(|&(i, j)| {
             let (s, t) = (&surfaces[i], &surfaces[j]);
             let old = old_row(s.name, t.name);
