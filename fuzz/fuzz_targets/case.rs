@@ -1,7 +1,9 @@
 //! Any bytes as one structure of a cohort case (a tumour beside a fixed vein it must keep its
-//! distance to; the first byte picks the format and whether it goes through the cfd profile):
-//! loading and processing the case (context, smoothing, the guard, cfd patches and remeshing,
-//! reports, pictures) must give a report, failed or not, never panic.
+//! distance to; the first byte picks the format and whether it goes through the cfd profile),
+//! or as a label map in the case (NIfTI, gzipped NIfTI, NRRD, .nhdr): loading and processing the
+//! case (limits and the memory budget, extraction, context, smoothing, the guard, cfd patches and
+//! remeshing, reports, pictures) must give a report, failed or not, never panic nor abort under
+//! an address-space limit.
 #![no_main]
 use destair::job::{config::Config, discover::discover, load::load_case, plan::Plan};
 use libfuzzer_sys::fuzz_target;
@@ -65,11 +67,24 @@ fuzz_target!(|data: &[u8]| {
     };
     let dir = cohort();
     let case = dir.join("cases/c1");
-    for ext in ["ply", "stl", "obj"] {
-        let _ = std::fs::remove_file(case.join(format!("tumor.{ext}")));
+    for name in [
+        "tumor.ply",
+        "tumor.stl",
+        "tumor.obj",
+        "seg.nii",
+        "seg.nii.gz",
+        "seg.nrrd",
+        "seg.nhdr",
+    ] {
+        let _ = std::fs::remove_file(case.join(name));
     }
-    let ext = ["ply", "stl", "obj"][which as usize % 3];
-    std::fs::write(case.join(format!("tumor.{ext}")), bytes).unwrap();
+    let name = if which & 8 != 0 {
+        ["seg.nii", "seg.nii.gz", "seg.nrrd", "seg.nhdr"][(which >> 4) as usize % 4]
+    } else {
+        ["tumor.ply", "tumor.stl", "tumor.obj"][which as usize % 3]
+    };
+    std::fs::write(case.join(name), bytes).unwrap();
+    std::fs::write(case.join("data.raw"), &bytes[bytes.len() / 2..]).unwrap();
     let path = dir.join("cohort.toml");
     let text = if which & 4 != 0 {
         format!("{CONFIG}{CFD}")
