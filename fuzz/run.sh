@@ -27,6 +27,8 @@ cargo build --locked --release --target "$host" --bin "$target" --quiet
 mkdir -p "corpus/$target" "artifacts/$target"
 # ulimit -v is in KiB; libFuzzer's own RSS limit is kept off (the address-space limit is the
 # one being tested) and each input gets 60 s before it counts as a hang.
+log="artifacts/$target/last-run.log"
+set +e
 (
     ulimit -v $((limit_mb * 1024))
     seeds=()
@@ -34,6 +36,13 @@ mkdir -p "corpus/$target" "artifacts/$target"
     exec "target/$host/release/$target" "corpus/$target" "${seeds[@]}" \
         -artifact_prefix="artifacts/$target/" -max_total_time="$seconds" \
         -rss_limit_mb=0 -malloc_limit_mb=0 -timeout=60 -print_final_stats=1 "$@"
-) 2>&1 | tee "artifacts/$target/last-run.log" | grep -E "^(#[0-9]+ +DONE|Done [0-9]+ runs|stat::number_of_executed_units|==[0-9]+== ERROR|SUMMARY)" || true
-status=${PIPESTATUS[0]}
+) > "$log" 2>&1
+status=$?
+set -e
+echo "fuzz $target, ${seconds} s under ulimit -v ${limit_mb} MB:"
+grep -E "^(Done [0-9]+ runs|stat::number_of_executed_units)" "$log" || true
+if [ "$status" -ne 0 ]; then
+    echo "fuzz $target failed (exit $status); the end of $log:"
+    tail -n 60 "$log"
+fi
 exit "$status"
