@@ -65,8 +65,8 @@ pub fn message(e: &anyhow::Error) -> String {
     out
 }
 
-/// The exit code for an error: 2 usage, 3 bad input, failed cases or outputs that cannot be
-/// written, 128 + n signals, else 1.
+/// The exit code for an error: 2 usage, 3 bad input, failed cases or files that cannot be read
+/// or written, 128 + n signals, else 1.
 pub fn exit_code(e: &anyhow::Error) -> u8 {
     if let Some(Interrupted(signal)) = e.downcast_ref::<Interrupted>() {
         128 + *signal as u8
@@ -79,8 +79,11 @@ pub fn exit_code(e: &anyhow::Error) -> u8 {
         || e.downcast_ref::<LabelMapInputError>().is_some()
         || e.downcast_ref::<Rejected>().is_some()
         || e.chain().any(|c| {
+            // Files that cannot be read or written (a full disk, a name too long, no
+            // permission) are input and disk problems, not destair's.
             c.downcast_ref::<destair::io::WriteError>().is_some()
                 || c.downcast_ref::<destair::volume::LabelMapError>().is_some()
+                || c.downcast_ref::<std::io::Error>().is_some()
         })
     {
         3

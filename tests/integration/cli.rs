@@ -1018,4 +1018,14 @@ fn outputs_that_cannot_be_written_exit_3_naming_the_file_once() {
     assert_eq!(run.status.code(), Some(3), "{err}");
     assert!(err.contains(&"b".repeat(300)), "{err}");
     assert_eq!(err.matches("File name too long").count(), 1, "{err}");
+    // Any command: a folder that cannot be made is the disk's problem, not an internal error.
+    let run = common::cohort::destair(&[
+        "phantom",
+        "neck",
+        "--out",
+        dir.join("c".repeat(300)).to_str().unwrap(),
+    ]);
+    let err = common::cohort::stderr(&run);
+    assert_eq!(run.status.code(), Some(3), "{err}");
+    assert_eq!(err.matches("File name too long").count(), 1, "{err}");
 }
