@@ -21,6 +21,19 @@ pub struct Surface<'a> {
     pub name: &'a str,
     pub before: &'a Mesh,
     pub after: &'a Mesh,
+    /// Structures whose "before" surface holds triangles of this one's (labels of one label
+    /// map sharing an interface): they touch before by construction, so the pair is not
+    /// measured. A case of many labels has many such pairs, and measuring each costs the size
+    /// of both surfaces.
+    pub shares_triangles_with: &'a [String],
+}
+
+impl Surface<'_> {
+    /// Whether this structure's input holds triangles of `other`'s.
+    fn shares_triangles(&self, other: &Surface) -> bool {
+        self.shares_triangles_with.iter().any(|n| n == other.name)
+            || other.shares_triangles_with.iter().any(|n| n == self.name)
+    }
 }
 
 /// Two structures before and after smoothing.
@@ -246,9 +259,11 @@ fn table_reusing(
         let (a, b) = (surfaces[i].name, surfaces[j].name);
         changed(a) || changed(b) || old_row(a, b).is_none()
     };
+    // Pairs known to touch before (shared triangles) need nothing measured at all.
+    let shared = |i: usize, j: usize| surfaces[i].shares_triangles(&surfaces[j]);
     let mut needed = vec![false; surfaces.len()];
     for &(i, j) in &near {
-        if remeasure(i, j) {
+        if remeasure(i, j) && !shared(i, j) {
             needed[i] = true;
             needed[j] = true;
         }
@@ -283,6 +298,7 @@ fn table_reusing(
             }
             let before = match old {
                 Some(row) => row.min_distance_before_mm,
+                None if shared(i, j) => 0.0,
                 None => measure(s.before, tree(i, false), t.before, tree(j, false)),
             };
             // Structures that touch already (labels sharing an interface) cannot touch anew

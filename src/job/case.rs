@@ -119,6 +119,7 @@ pub fn process_case(plan: &Plan, case: LoadedCase) -> CaseOutput {
                     source: Some(st.source),
                     binary: st.binary,
                     renumbering: None,
+                    shares_triangles_with: st.shares_triangles_with,
                 });
             }
         }
@@ -335,6 +336,7 @@ fn run_structure(
                         before,
                         after,
                         picture,
+                        shares_triangles_with: f.shares_triangles_with.clone(),
                     });
                     kept.sort_by_key(|k| k.input);
                 }

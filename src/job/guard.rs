@@ -28,6 +28,9 @@ pub(super) struct Kept {
     pub repairable: bool,
     /// What its pictures need besides the surfaces (none for structures copied unchanged).
     pub picture: Option<super::pictures::PictureInput>,
+    /// Structures whose input holds triangles of this one's input (labels of one map that
+    /// share an interface): in contact before by construction.
+    pub shares_triangles_with: Vec<String>,
 }
 
 /// The pair table of the kept structures; after a repair, only what involves the structures
@@ -43,6 +46,7 @@ fn measure_pairs(
             name: &k.name,
             before: &k.before,
             after: &k.after,
+            shares_triangles_with: &k.shares_triangles_with,
         })
         .collect();
     match previous {

@@ -150,6 +150,9 @@ pub struct LabelStructure {
     pub binary: Option<Mesh>,
     pub place: Place,
     pub source: LabelSource,
+    /// The structures of the same layer whose surfaces share interface triangles with this
+    /// one's (by name).
+    pub shares_triangles_with: Vec<String>,
 }
 
 /// Reads and hashes a label map (with its detached data file) in `plan.space`, within
@@ -291,6 +294,15 @@ pub fn label_structures(
             .iter()
             .any(|s| s.surface == Surface::Constrained)
             .then(|| all.positions.clone());
+        // Labels that share interface triangles (both sides a label, not background).
+        let mut sharing: Vec<std::collections::BTreeSet<u16>> =
+            vec![Default::default(); layer.labels.len() + 1];
+        for &[inner, outer] in &all.sides {
+            if inner != 0 && outer != 0 {
+                sharing[inner as usize].insert(outer);
+                sharing[outer as usize].insert(inner);
+            }
+        }
         let counts = crate::extract::constrained::place_on_weights(layer, &mut all, &smoothing);
         let frame = grid.frame();
         if frame.is_none() {
@@ -353,6 +365,10 @@ pub fn label_structures(
                 },
                 binary,
                 place,
+                shares_triangles_with: sharing[s.label as usize]
+                    .iter()
+                    .map(|&other| names[other as usize - 1].clone())
+                    .collect(),
                 source: LabelSource {
                     label_map: loaded.file.clone(),
                     layer: layer_index,

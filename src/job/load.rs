@@ -26,6 +26,9 @@ pub struct LoadedFile {
     /// For a file whose numbering is scattered, the scanline order its mesh was renumbered to
     /// after reading (every pass runs in it); outputs go back to the file's numbering.
     pub renumbering: Option<Renumbering>,
+    /// For a label surface, the structures of the same label map whose surfaces hold some of
+    /// its triangles (they share an interface).
+    pub shares_triangles_with: Vec<String>,
 }
 
 impl LoadedCase {
@@ -88,6 +91,7 @@ pub fn load_case(plan: &Plan, input: CaseInput) -> LoadedCase {
                         source: None,
                         binary: None,
                         renumbering,
+                        shares_triangles_with: Vec::new(),
                     }
                 }
                 Err(e) => LoadedFile {
@@ -100,6 +104,7 @@ pub fn load_case(plan: &Plan, input: CaseInput) -> LoadedCase {
                     source: None,
                     binary: None,
                     renumbering: None,
+                    shares_triangles_with: Vec::new(),
                 },
             }
         })

@@ -20,21 +20,25 @@ fn distances_contacts_and_far_pairs_by_hand() {
                 name: "b",
                 before: &b0,
                 after: &b1,
+                shares_triangles_with: &[],
             },
             Surface {
                 name: "a",
                 before: &a,
                 after: &a,
+                shares_triangles_with: &[],
             },
             Surface {
                 name: "c",
                 before: &c,
                 after: &c,
+                shares_triangles_with: &[],
             },
             Surface {
                 name: "d",
                 before: &d,
                 after: &d,
+                shares_triangles_with: &[],
             },
         ],
         true,
@@ -82,10 +86,60 @@ fn an_update_after_one_structure_changed_equals_measuring_everything() {
             name,
             before,
             after,
+            shares_triangles_with: &[],
         })
     };
     let first = pair_table(&surfaces(&b0), true);
     let updated = update_pair_table(&surfaces(&b1), &first, &["b"], true);
     assert_eq!(updated, pair_table(&surfaces(&b1), true));
     assert!((updated.pairs[0].change_mm + 0.3).abs() < 1e-6);
+}
+
+/// Labels of one map that share interface triangles touch by construction: naming them as such
+/// gives the table measuring them gives, without measuring (random label volumes, every pair).
+#[test]
+fn pairs_known_to_share_triangles_get_the_measured_rows() {
+    use destair::volume::{Grid, LabelVolume, Space};
+    let mut rng = fastrand::Rng::with_seed(8);
+    for _ in 0..6 {
+        let dims = [rng.usize(3..9), rng.usize(3..9), rng.usize(2..6)];
+        let n: usize = dims.iter().product();
+        let grid = Grid::axis_aligned([0.8, 0.8, 2.0], [0.0; 3], Space::Lps);
+        let v = LabelVolume::from_values(dims, grid, (0..n).map(|_| rng.i64(0..5))).unwrap();
+        let all = destair::extract::interfaces(&v);
+        let surfaces = destair::extract::label_surfaces(&v, &all);
+        let names: Vec<String> = surfaces.iter().map(|s| format!("l{}", s.label)).collect();
+        let sharing: Vec<Vec<String>> = surfaces
+            .iter()
+            .map(|s| {
+                let mut with: Vec<String> = all
+                    .sides
+                    .iter()
+                    .filter(|x| x.contains(&s.label) && !x.contains(&0))
+                    .map(|x| format!("l{}", x[0] + x[1] - s.label))
+                    .collect();
+                with.sort();
+                with.dedup();
+                with
+            })
+            .collect();
+        let list = |known: bool| -> Vec<Surface> {
+            surfaces
+                .iter()
+                .zip(&names)
+                .zip(&sharing)
+                .map(|((s, name), with)| Surface {
+                    name,
+                    before: &s.mesh,
+                    after: &s.mesh,
+                    shares_triangles_with: if known { with } else { &[] },
+                })
+                .collect()
+        };
+        assert_eq!(
+            pair_table(&list(true), false),
+            pair_table(&list(false), false)
+        );
+        assert!(sharing.iter().any(|w| !w.is_empty()));
+    }
 }
