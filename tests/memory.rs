@@ -85,7 +85,7 @@ fn a_cohort_of_large_cases_stays_within_the_memory_budget() {
         / 1048576.0;
     // Room for one case and a bit by the estimate, so two workers must take turns: an estimate
     // below the real peak lets both run at once and the peak goes over.
-    let estimate_mb = input_mb * destair::job::pipeline::MEMORY_PER_INPUT_BYTE as f64;
+    let estimate_mb = input_mb * destair::job::memory::MEMORY_PER_INPUT_BYTE as f64;
     let budget_mb = (1.2 * estimate_mb).ceil() as u64;
     let c = write_config(
         dir,

@@ -199,15 +199,8 @@ pub fn load_label_map(plan: &Plan, path: &Path, room: u64) -> LoadedLabelMap {
                 return Err(budget(
                     to_read,
                     format!(
-                        "reading its {} x {} x {} voxels{}",
-                        header.dims[0],
-                        header.dims[1],
-                        header.dims[2],
-                        if header.n_layers > 1 {
-                            format!(" in {} layers", header.n_layers)
-                        } else {
-                            String::new()
-                        }
+                        "reading its {}",
+                        crate::volume::voxels_text(header.dims, header.n_layers)
                     ),
                 ));
             }

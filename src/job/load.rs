@@ -36,7 +36,7 @@ impl LoadedCase {
     /// counted: its meshes' estimate and each map's.
     pub fn memory(&self) -> u64 {
         self.label_maps.iter().map(|m| m.memory).fold(
-            super::pipeline::mesh_memory(&self.input),
+            super::memory::mesh_memory(&self.input.meshes),
             u64::saturating_add,
         )
     }
@@ -112,7 +112,7 @@ pub fn load_case(plan: &Plan, input: CaseInput) -> LoadedCase {
     // Each label map within what the budget leaves after the meshes and the maps before it.
     let mut room = plan
         .memory_budget_bytes
-        .saturating_sub(super::pipeline::mesh_memory(&input));
+        .saturating_sub(super::memory::mesh_memory(&input.meshes));
     let label_maps: Vec<LoadedLabelMap> = input
         .label_maps
         .iter()

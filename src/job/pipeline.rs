@@ -13,6 +13,7 @@ use super::case::{process_case, CaseOutput};
 use super::discover::CaseInput;
 use super::load::{load_case, LoadedCase};
 use super::lock::{LockMode, LockScope, OutputLock, Wait};
+use super::memory::memory_estimate;
 use super::outputs::{case_dir, is_done, read_manifest, write_case_output};
 use super::plan::Plan;
 use crate::io::{remove_stale_temp_files, ProtectedFiles};
@@ -21,12 +22,6 @@ use crossbeam_channel::{bounded, RecvTimeoutError};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::Duration;
-
-/// Input bytes are multiplied by this to estimate a case's peak memory (decoded meshes,
-/// topology, reference grids, smoothing buffers, metrics, encoded outputs). Measured on binary
-/// PLY phantom cases of 40 k to 4 M triangles; see `tests/run.rs` for the check against the
-/// peak resident memory of real runs.
-pub const MEMORY_PER_INPUT_BYTE: u64 = 24;
 
 /// How often the writer looks at the stop flag while it waits for a case.
 const POLL: Duration = Duration::from_millis(25);
@@ -73,33 +68,6 @@ pub struct RunResult {
     pub not_started: usize,
     /// Cases started but abandoned unwritten because the run was stopped.
     pub unfinished: usize,
-}
-
-/// Estimated peak memory of a case's mesh files while it is processed (bytes): 24 per input
-/// byte.
-pub fn mesh_memory(case: &CaseInput) -> u64 {
-    case.meshes
-        .iter()
-        .map(|(_, p)| std::fs::metadata(p).map_or(0, |m| m.len()))
-        .sum::<u64>()
-        .saturating_mul(MEMORY_PER_INPUT_BYTE)
-}
-
-/// Estimated peak memory of a case before it is read (bytes): its meshes, and what reading
-/// its label maps takes by their headers (their surfaces are counted once they are read, and
-/// the case's share of the budget grows then; see [`LoadedCase::memory`]).
-pub fn memory_estimate(case: &CaseInput) -> u64 {
-    let voxels = case
-        .label_maps
-        .iter()
-        .map(|p| {
-            crate::volume::read_header(p).map_or_else(
-                |_| std::fs::metadata(p).map_or(0, |m| m.len()),
-                |h| h.bytes_to_read(),
-            )
-        })
-        .fold(0u64, u64::saturating_add);
-    mesh_memory(case).saturating_add(voxels)
 }
 
 /// Bounds the estimated memory of the cases in flight.
@@ -184,7 +152,7 @@ fn load_cases(
         if stop.load(Ordering::Relaxed) {
             return;
         }
-        let size = memory_estimate(&case);
+        let size = memory_estimate(&case.meshes, &case.label_maps);
         budget.acquire(size);
         // The wait may have been long: a stop during it must not start another case.
         if stop.load(Ordering::Relaxed) {

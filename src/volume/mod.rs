@@ -49,15 +49,8 @@ impl LabelMapLimits {
         let n = voxel_count(dims)?.saturating_mul(n_layers);
         if n > self.max_voxels {
             return Err(format!(
-                "{} x {} x {} voxels{} is {n} voxels, more than the {} allowed (max_label_voxels)",
-                dims[0],
-                dims[1],
-                dims[2],
-                if n_layers > 1 {
-                    format!(" in {n_layers} layers")
-                } else {
-                    String::new()
-                },
+                "{} is {n} voxels, more than the {} allowed (max_label_voxels)",
+                voxels_text(dims, n_layers),
                 self.max_voxels
             ));
         }
@@ -76,6 +69,16 @@ impl LabelMapLimits {
             self.max_labels
         )
     }
+}
+
+/// "512 x 512 x 300 voxels" (with " in 3 layers" for several), for messages.
+pub fn voxels_text(dims: [u64; 3], n_layers: u64) -> String {
+    let layers = if n_layers > 1 {
+        format!(" in {n_layers} layers")
+    } else {
+        String::new()
+    };
+    format!("{} x {} x {} voxels{layers}", dims[0], dims[1], dims[2])
 }
 
 /// What a label map's header declares, read without touching the voxels: for estimating the
