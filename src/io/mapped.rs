@@ -22,6 +22,16 @@ static ENDS: [AtomicUsize; SLOTS] = [const { AtomicUsize::new(0) }; SLOTS];
 static CUT_SHORT: [AtomicBool; SLOTS] = [const { AtomicBool::new(false) }; SLOTS];
 static PAGE: AtomicUsize = AtomicUsize::new(4096);
 static INSTALL: Once = Once::new();
+/// The SIGBUS action before this module's, which a SIGBUS outside every mapping is passed to (a
+/// fuzzer's crash handler, say).
+static PREVIOUS: std::sync::OnceLock<Previous> = std::sync::OnceLock::new();
+
+/// A saved signal action (plain data: a handler address, flags, a mask).
+struct Previous(libc::sigaction);
+// SAFETY: the action is written once before the handler that reads it is installed, and only
+// read afterwards.
+unsafe impl Sync for Previous {}
+unsafe impl Send for Previous {}
 
 /// The bytes of an input file: mapped (and guarded), or read into memory where mapping is not
 /// possible (an empty file, or every guard slot taken).
@@ -170,6 +180,9 @@ fn install_handler() {
             if page > 0 {
                 PAGE.store(page as usize, Ordering::Relaxed);
             }
+            let mut previous: libc::sigaction = std::mem::zeroed();
+            libc::sigaction(libc::SIGBUS, std::ptr::null(), &mut previous);
+            let _ = PREVIOUS.set(Previous(previous));
             let mut action: libc::sigaction = std::mem::zeroed();
             action.sa_sigaction = on_sigbus as *const () as usize;
             action.sa_flags = libc::SA_SIGINFO;
@@ -180,12 +193,12 @@ fn install_handler() {
 }
 
 /// SIGBUS: inside a registered mapping, zero pages from the faulting page to the mapping's end
-/// and a mark; anywhere else, the default action (the faulting access repeats and ends the
-/// process as it would have).
+/// and a mark; anywhere else, the action there was before (a handler of its own is called; the
+/// default is restored, so the faulting access repeats and ends the process as it would have).
 extern "C" fn on_sigbus(
-    _signal: libc::c_int,
+    signal: libc::c_int,
     info: *mut libc::siginfo_t,
-    _context: *mut libc::c_void,
+    context: *mut libc::c_void,
 ) {
     // SAFETY: the kernel passes a valid siginfo for SA_SIGINFO handlers.
     let addr = unsafe { (*info).si_addr() } as usize;
@@ -212,6 +225,23 @@ extern "C" fn on_sigbus(
         };
         if replaced != libc::MAP_FAILED {
             CUT_SHORT[slot].store(true, Ordering::SeqCst);
+            return;
+        }
+    }
+    if let Some(Previous(previous)) = PREVIOUS.get() {
+        let handler = previous.sa_sigaction;
+        if handler != libc::SIG_DFL && handler != libc::SIG_IGN {
+            // SAFETY: a handler installed before this one, called as the kernel would have.
+            unsafe {
+                if previous.sa_flags & libc::SA_SIGINFO != 0 {
+                    let f: extern "C" fn(libc::c_int, *mut libc::siginfo_t, *mut libc::c_void) =
+                        std::mem::transmute(handler);
+                    f(signal, info, context);
+                } else {
+                    let f: extern "C" fn(libc::c_int) = std::mem::transmute(handler);
+                    f(signal);
+                }
+            }
             return;
         }
     }

@@ -185,24 +185,23 @@ pub fn load_label_map(plan: &Plan, path: &Path, room: u64) -> LoadedLabelMap {
         Err(e) => Err(format!("{shown}: cannot read: {e}")),
         Ok(()) => (|| {
             // A header that cannot be read is left to the reader, whose error says more (a
-            // truncated gzip stream, say); it fails there before reading any voxel.
-            let Ok(header) = crate::volume::read_header(path) else {
-                return crate::volume::read_label_map_within(path, plan.space, &plan.label_limits)
-                    .map_err(|e| format!("{shown}: {}", e.message));
-            };
-            plan.label_limits
-                .check_voxels(header.dims, header.n_layers)
-                .map_err(|e| format!("{shown}: {e}"))?;
-            let to_read = header.bytes_to_read();
-            if to_read > room {
-                over_budget = true;
-                return Err(budget(
-                    to_read,
-                    format!(
-                        "reading its {}",
-                        crate::volume::voxels_text(header.dims, header.n_layers)
-                    ),
-                ));
+            // truncated gzip stream, say) and which checks the same header before any voxel.
+            let mut to_read = 0;
+            if let Ok(header) = crate::volume::read_header(path) {
+                plan.label_limits
+                    .check_voxels(header.dims, header.n_layers)
+                    .map_err(|e| format!("{shown}: {e}"))?;
+                to_read = header.bytes_to_read();
+                if to_read > room {
+                    over_budget = true;
+                    return Err(budget(
+                        to_read,
+                        format!(
+                            "reading its {}",
+                            crate::volume::voxels_text(header.dims, header.n_layers)
+                        ),
+                    ));
+                }
             }
             let map = crate::volume::read_label_map_within(path, plan.space, &plan.label_limits)
                 .map_err(|e| format!("{shown}: {}", e.message))?;

@@ -1,7 +1,8 @@
 //! The streaming pipeline: a loader thread reads and hashes cases, a fixed number of worker
 //! threads process them (rayon only inside a case), and the calling thread writes the results,
-//! joined by bounded channels. Cases in flight are bounded by a memory budget on their input
-//! bytes, so a cohort of 10 000 cases runs in the memory of a few.
+//! joined by bounded channels. Cases in flight are bounded by a memory budget on their
+//! estimated memory (see [`super::memory`]), so a cohort of 10 000 cases runs in the memory of
+//! a few.
 //!
 //! Stopping: when the stop flag is set (SIGTERM, SIGINT), the loader takes no new case, and the
 //! writer returns as soon as the case it is writing (if any) is complete. Cases still being

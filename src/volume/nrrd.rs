@@ -370,9 +370,19 @@ pub fn read(path: &Path, limits: &LabelMapLimits) -> Result<LabelMap, String> {
             h.big_endian,
             (layer, h.n_layers as usize),
             counted.take(),
-            limits.max_labels - n_labels.min(limits.max_labels),
+            limits.max_labels,
         )?;
         n_labels += volume.labels.len();
+        if n_labels > limits.max_labels {
+            // Labels of all layers together: "its first 3 layers hold 300 distinct values, ...".
+            return Err(format!(
+                "its first {} layers hold{}",
+                layer + 1,
+                limits
+                    .too_many_labels(Some(n_labels))
+                    .trim_start_matches("holds")
+            ));
+        }
         layers.push(volume);
     }
     drop(raw);
