@@ -224,3 +224,42 @@ fn a_gzip_bomb_under_an_address_space_limit_fails_alone() {
         assert!(report.contains("\"status\": \"ok\""), "{case}: {report}");
     }
 }
+
+/// A mesh case that cannot fit in what the process may use, even at the least a case needs (12
+/// bytes a mesh byte), fails with the figures under an address-space limit; the other case is
+/// done (the run aborted with SIGABRT before, writing nothing after it).
+#[test]
+fn a_mesh_case_beyond_the_address_space_limit_fails_alone() {
+    let _alone = ALONE.lock().unwrap_or_else(|e| e.into_inner());
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    for (case, args) in [("small", vec!["neck"]), ("big", vec!["big", "2000000"])] {
+        let mut all = vec!["phantom"];
+        all.extend(args);
+        let out = dir.join("cases").join(case);
+        all.extend(["--out", out.to_str().unwrap()]);
+        assert!(destair(&all).status.success());
+    }
+    let c = write_config(
+        dir,
+        "c.toml",
+        "[input]\nroots = [\"cases\"]\ncase_depth = 1\n[output]\nroot = \"out\"\n[defaults]\nmethod = \"laplace\"\n",
+    );
+    let run = std::process::Command::new("sh")
+        .args([
+            "-c",
+            "ulimit -v 409600 && exec \"$0\" run \"$1\"",
+            env!("CARGO_BIN_EXE_destair"),
+            c.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(3), "{err}");
+    assert!(
+        err.contains("1 case of 2 failed: big") && err.contains("need at least"),
+        "{err}"
+    );
+    let report = std::fs::read_to_string(dir.join("out/small/report.json")).unwrap();
+    assert!(report.contains("\"status\": \"ok\""), "{report}");
+}

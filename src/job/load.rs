@@ -59,6 +59,20 @@ pub fn load_case(plan: &Plan, input: CaseInput) -> LoadedCase {
         mode: plan.read_mode,
         ..Default::default()
     };
+    // Meshes that cannot fit in what this process may use, even at the least a case needs,
+    // fail with the figures instead of aborting the run.
+    let mesh_bytes =
+        super::memory::mesh_memory(&input.meshes) / super::memory::MEMORY_PER_INPUT_BYTE;
+    let least = mesh_bytes.saturating_mul(super::memory::MESH_BYTES_AT_LEAST);
+    let beyond = (least > plan.memory_limit.bytes).then(|| {
+        format!(
+            "the case's meshes ({} MB) need at least {} MB, more than this process may use ({} MB, by {})",
+            mesh_bytes.div_ceil(1 << 20),
+            least.div_ceil(1 << 20),
+            plan.memory_limit.bytes.div_ceil(1 << 20),
+            plan.memory_limit.source
+        )
+    });
     let files: Vec<LoadedFile> = input
         .meshes
         .iter()
@@ -69,11 +83,11 @@ pub fn load_case(plan: &Plan, input: CaseInput) -> LoadedCase {
             let ext = extension(path);
             match with_file_bytes(path, plan.read_mode, |b| {
                 let hash = blake3::hash(b).to_hex().to_string();
-                (
-                    b.len() as u64,
-                    hash,
-                    decode_mesh(b, ext.as_deref(), &options),
-                )
+                let mesh = match &beyond {
+                    Some(why) => Err(why.clone()),
+                    None => decode_mesh(b, ext.as_deref(), &options).map_err(|e| e.to_string()),
+                };
+                (b.len() as u64, hash, mesh)
             }) {
                 Ok((bytes, blake3, mesh)) => {
                     let mut mesh = mesh.map_err(|e| format!("{}: {e}", plan.display(path)));

@@ -44,6 +44,9 @@ pub struct Plan {
     pub memory_budget_bytes: u64,
     /// Where the budget comes from, for the run's first line and messages.
     pub memory_budget_source: String,
+    /// What this process may use (the budget never exceeds it; a case that cannot fit in it
+    /// fails instead of running alone).
+    pub memory_limit: super::memory::MemoryLimit,
     /// What a label map may hold (`[input] max_label_voxels`, `max_labels`,
     /// `spacing_range_mm`).
     pub label_limits: crate::volume::LabelMapLimits,
@@ -200,8 +203,9 @@ impl Plan {
                 "[run] workers = {workers}: must be between 1 and {MAX_WORKERS} (cases processed at once; each already uses every thread)"
             )));
         }
+        let memory_limit = super::memory::process_memory_limit();
         let (memory_budget_bytes, memory_budget_source) =
-            memory_budget(config.run.memory_budget_mb).map_err(invalid)?;
+            memory_budget(config.run.memory_budget_mb, &memory_limit).map_err(invalid)?;
         let label_limits = label_limits(&config.input).map_err(invalid)?;
         if let Some(d) = config.input.case_depth {
             if d > MAX_CASE_DEPTH {
@@ -239,6 +243,7 @@ impl Plan {
             workers,
             memory_budget_bytes,
             memory_budget_source,
+            memory_limit,
             label_limits,
             read_mode: if config.run.plain_read {
                 ReadMode::Read
@@ -414,8 +419,10 @@ fn guard_policy(c: &super::config::GuardConfig) -> Result<crate::guard::GuardPol
 
 /// The memory budget (bytes) and where it comes from: `[run] memory_budget_mb`, held to what
 /// this process may use, or by default half of that.
-fn memory_budget(configured_mb: Option<u64>) -> Result<(u64, String), String> {
-    let limit = super::memory::process_memory_limit();
+fn memory_budget(
+    configured_mb: Option<u64>,
+    limit: &super::memory::MemoryLimit,
+) -> Result<(u64, String), String> {
     let mib = |b: u64| crate::units::readable(b as f64 / f64::from(1 << 20));
     match configured_mb {
         Some(mb) if !(1..=MAX_MEMORY_BUDGET_MB).contains(&mb) => Err(format!(
