@@ -152,6 +152,29 @@ fn noise_label_maps_stay_within_the_memory_budget() {
     );
 }
 
+/// Runs the cases below `dir/cases` (Laplace) with the address space limited to `kib` KiB, as
+/// `ulimit -v` (and clusters) set it: the exit code and stderr.
+fn run_under_address_limit(dir: &Path, kib: u64) -> (Option<i32>, String) {
+    let c = write_config(
+        dir,
+        "c.toml",
+        "[input]\nroots = [\"cases\"]\ncase_depth = 1\n[output]\nroot = \"out\"\n[defaults]\nmethod = \"laplace\"\n",
+    );
+    let run = std::process::Command::new("sh")
+        .args([
+            "-c",
+            &format!("ulimit -v {kib} && exec \"$0\" run \"$1\""),
+            env!("CARGO_BIN_EXE_destair"),
+            c.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    (
+        run.status.code(),
+        String::from_utf8_lossy(&run.stderr).into_owned(),
+    )
+}
+
 /// A gzip bomb (about 1 MB inflating to a gigabyte) in a cohort of three under an address-space
 /// limit, as clusters set: refused from its header before a byte is inflated; the other two
 /// cases are done and the run exits 3 (it aborted with SIGABRT before, writing nothing).
@@ -196,23 +219,8 @@ fn a_gzip_bomb_under_an_address_space_limit_fails_alone() {
     std::fs::create_dir_all(dir.join("cases/bomb")).unwrap();
     std::fs::write(dir.join("cases/bomb/seg.nii.gz"), &bomb).unwrap();
     eprintln!("bomb: {} bytes", bomb.len());
-    let c = write_config(
-        dir,
-        "c.toml",
-        "[input]\nroots = [\"cases\"]\ncase_depth = 1\n[output]\nroot = \"out\"\n[defaults]\nmethod = \"laplace\"\n",
-    );
-    // ulimit -v 4 GB, then destair.
-    let run = std::process::Command::new("sh")
-        .args([
-            "-c",
-            "ulimit -v 4194304 && exec \"$0\" run \"$1\"",
-            env!("CARGO_BIN_EXE_destair"),
-            c.to_str().unwrap(),
-        ])
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&run.stderr);
-    assert_eq!(run.status.code(), Some(3), "{err}");
+    let (code, err) = run_under_address_limit(dir, 4 << 20);
+    assert_eq!(code, Some(3), "{err}");
     assert!(err.contains("1 case of 3 failed: bomb"), "{err}");
     assert!(
         err.contains("memory budget") && err.contains("ulimit -v"),
@@ -240,22 +248,8 @@ fn a_mesh_case_beyond_the_address_space_limit_fails_alone() {
         all.extend(["--out", out.to_str().unwrap()]);
         assert!(destair(&all).status.success());
     }
-    let c = write_config(
-        dir,
-        "c.toml",
-        "[input]\nroots = [\"cases\"]\ncase_depth = 1\n[output]\nroot = \"out\"\n[defaults]\nmethod = \"laplace\"\n",
-    );
-    let run = std::process::Command::new("sh")
-        .args([
-            "-c",
-            "ulimit -v 409600 && exec \"$0\" run \"$1\"",
-            env!("CARGO_BIN_EXE_destair"),
-            c.to_str().unwrap(),
-        ])
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&run.stderr);
-    assert_eq!(run.status.code(), Some(3), "{err}");
+    let (code, err) = run_under_address_limit(dir, 400 << 10);
+    assert_eq!(code, Some(3), "{err}");
     assert!(
         err.contains("1 case of 2 failed: big") && err.contains("need at least"),
         "{err}"
