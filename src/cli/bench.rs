@@ -216,6 +216,10 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
             );
             println!("    interfaces           {:.4} s", r.interfaces_s);
             println!("    label surfaces       {:.4} s", r.assemble_s);
+            println!(
+                "  count surfaces         {:.4} s  ({} surface triangles, for the memory budget)",
+                r.count_s, r.n_surface_triangles
+            );
         }
         Args::Io {
             triangles,
