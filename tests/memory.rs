@@ -233,9 +233,9 @@ fn a_gzip_bomb_under_an_address_space_limit_fails_alone() {
     }
 }
 
-/// A mesh case that cannot fit in what the process may use, even at the least a case needs (12
-/// bytes a mesh byte), fails with the figures under an address-space limit; the other case is
-/// done (the run aborted with SIGABRT before, writing nothing after it).
+/// A mesh case whose estimate (24 bytes a mesh byte) exceeds what the process may use fails
+/// with the figures under an address-space limit; the other case is done (the run aborted with
+/// SIGABRT before, and every rerun at the same case).
 #[test]
 fn a_mesh_case_beyond_the_address_space_limit_fails_alone() {
     let _alone = ALONE.lock().unwrap_or_else(|e| e.into_inner());
@@ -251,7 +251,7 @@ fn a_mesh_case_beyond_the_address_space_limit_fails_alone() {
     let (code, err) = run_under_address_limit(dir, 400 << 10);
     assert_eq!(code, Some(3), "{err}");
     assert!(
-        err.contains("1 case of 2 failed: big") && err.contains("need at least"),
+        err.contains("1 case of 2 failed: big") && err.contains("by the estimate"),
         "{err}"
     );
     let report = std::fs::read_to_string(dir.join("out/small/report.json")).unwrap();

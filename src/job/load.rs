@@ -59,16 +59,16 @@ pub fn load_case(plan: &Plan, input: CaseInput) -> LoadedCase {
         mode: plan.read_mode,
         ..Default::default()
     };
-    // Meshes that cannot fit in what this process may use, even at the least a case needs,
-    // fail with the figures instead of aborting the run.
-    let mesh_bytes =
-        super::memory::mesh_memory(&input.meshes) / super::memory::MEMORY_PER_INPUT_BYTE;
-    let least = mesh_bytes.saturating_mul(super::memory::MESH_BYTES_AT_LEAST);
-    let beyond = (least > plan.memory_limit.bytes).then(|| {
+    // Meshes whose estimate exceeds what this process may use fail with the figures: running
+    // them could abort the process (an address-space limit) or have it killed (a cgroup), and
+    // every rerun would die at the same case, leaving the cases after it undone. A case beyond
+    // the budget but within the limit runs alone.
+    let need = super::memory::mesh_memory(&input.meshes);
+    let beyond = (need > plan.memory_limit.bytes).then(|| {
         format!(
-            "the case's meshes ({} MB) need at least {} MB, more than this process may use ({} MB, by {})",
-            mesh_bytes.div_ceil(1 << 20),
-            least.div_ceil(1 << 20),
+            "the case's meshes ({} MB) need about {} MB by the estimate (24 bytes per input byte), more than this process may use ({} MB, by {}); raise that limit",
+            (need / super::memory::MEMORY_PER_INPUT_BYTE).div_ceil(1 << 20),
+            need.div_ceil(1 << 20),
             plan.memory_limit.bytes.div_ceil(1 << 20),
             plan.memory_limit.source
         )

@@ -13,13 +13,6 @@ use std::path::{Path, PathBuf};
 /// peak resident memory of real runs.
 pub const MEMORY_PER_INPUT_BYTE: u64 = 24;
 
-/// Bytes of memory a mesh case needs at the very least per input byte: a 38 MB binary PLY
-/// aborted under `ulimit -v` 550 MB (14.5 x) with the smallest settings (one Laplace pass, no
-/// pictures, no self-intersection check). A case whose meshes need more than the process may
-/// use by this factor cannot succeed, so it fails with the figures instead of aborting the run;
-/// one between this and [`MEMORY_PER_INPUT_BYTE`] still runs (alone when beyond the budget).
-pub const MESH_BYTES_AT_LEAST: u64 = 12;
-
 /// Estimated peak memory of a case's mesh files (structure, path) while it is processed
 /// (bytes): 24 per input byte.
 pub fn mesh_memory(meshes: &[(String, PathBuf)]) -> u64 {
