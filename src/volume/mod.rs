@@ -56,19 +56,18 @@ impl LabelMapLimits {
         }
         Ok(())
     }
+}
 
-    /// The error for a map holding more labels than `max_labels`: `found` of them when they
-    /// were all counted, `None` when reading stopped at the first one too many.
-    pub fn too_many_labels(&self, found: Option<usize>) -> String {
-        let what = match found {
-            Some(n) => format!("{n} distinct values"),
-            None => format!("more than {} distinct values", self.max_labels),
-        };
-        format!(
-            "holds {what}, more than the {} labels allowed (max_labels): is it an image? Select the label maps with [input] label_maps, or raise [input] max_labels",
-            self.max_labels
-        )
-    }
+/// The error for a map holding more labels than `max_labels`: `found` of them when they were
+/// all counted, `None` when reading stopped at the first one too many.
+pub fn too_many_labels(max_labels: usize, found: Option<usize>) -> String {
+    let what = match found {
+        Some(n) => format!("{n} distinct values"),
+        None => format!("more than {max_labels} distinct values"),
+    };
+    format!(
+        "holds {what}, more than the {max_labels} labels allowed (max_labels): is it an image? Select the label maps with [input] label_maps, or raise [input] max_labels"
+    )
 }
 
 /// "512 x 512 x 300 voxels" (with " in 3 layers" for several), for messages.
@@ -175,11 +174,7 @@ impl LabelVolume {
                     return Err(if max_labels == u16::MAX as usize {
                         "more than 65 535 different labels".into()
                     } else {
-                        LabelMapLimits {
-                            max_labels,
-                            ..Default::default()
-                        }
-                        .too_many_labels(None)
+                        too_many_labels(max_labels, None)
                     });
                 }
                 seen.push(v);
@@ -320,11 +315,7 @@ impl LabelVolume {
             .filter(|&k| counts_by_key[k] > 0 && value_of(k) != 0)
             .collect();
         if keys.len() > max_labels {
-            return Err(LabelMapLimits {
-                max_labels,
-                ..Default::default()
-            }
-            .too_many_labels(Some(keys.len())));
+            return Err(too_many_labels(max_labels, Some(keys.len())));
         }
         keys.sort_unstable_by_key(|&k| value_of(k));
         let values: Vec<i64> = keys.iter().map(|&k| value_of(k)).collect();
@@ -413,15 +404,45 @@ pub fn label_file_stem(name: &str, value: i64) -> String {
     }
 }
 
+/// A label-map format, by the file's ending.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Format {
+    /// `.nii`, or `.nii.gz` when `gz`.
+    Nifti { gz: bool },
+    /// `.nrrd`, `.seg.nrrd`, `.nhdr`.
+    Nrrd,
+}
+
+/// The label-map format a path names by its ending (any case), if any.
+fn format_of(path: &Path) -> Option<Format> {
+    let name = path.file_name()?.to_string_lossy().to_ascii_lowercase();
+    if name.ends_with(".nii") {
+        Some(Format::Nifti { gz: false })
+    } else if name.ends_with(".nii.gz") {
+        Some(Format::Nifti { gz: true })
+    } else if name.ends_with(".nrrd") || name.ends_with(".nhdr") {
+        Some(Format::Nrrd)
+    } else {
+        None
+    }
+}
+
+/// The format of a label map that can be read as a file (a regular file: opening a FIFO would
+/// block, and /dev/zero never ends), or why not.
+fn readable_format(path: &Path) -> Result<Format, LabelMapError> {
+    let err = |message: String| LabelMapError {
+        path: path.to_path_buf(),
+        message,
+    };
+    crate::io::check_regular_file(path).map_err(|e| err(e.to_string()))?;
+    format_of(path).ok_or_else(|| {
+        err("not a label map: expected .nii, .nii.gz, .nrrd, .seg.nrrd or .nhdr".into())
+    })
+}
+
 /// Which label-map format a path names, by its ending.
 pub fn is_label_map(path: &Path) -> bool {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().to_ascii_lowercase())
-        .unwrap_or_default();
-    [".nii", ".nii.gz", ".nrrd", ".nhdr"]
-        .iter()
-        .any(|e| name.ends_with(e))
+    format_of(path).is_some()
 }
 
 /// Reads a label map (NIfTI or NRRD by the file's ending), with world coordinates in `space`,
@@ -440,19 +461,9 @@ pub fn read_label_map_within(
         path: path.to_path_buf(),
         message,
     };
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().to_ascii_lowercase())
-        .unwrap_or_default();
-    crate::io::check_regular_file(path).map_err(|e| err(e.to_string()))?;
-    let mut map = if name.ends_with(".nii") || name.ends_with(".nii.gz") {
-        nifti::read(path, limits).map_err(err)?
-    } else if name.ends_with(".nrrd") || name.ends_with(".nhdr") {
-        nrrd::read(path, limits).map_err(err)?
-    } else {
-        return Err(err(
-            "not a label map: expected .nii, .nii.gz, .nrrd, .seg.nrrd or .nhdr".into(),
-        ));
+    let mut map = match readable_format(path)? {
+        Format::Nifti { gz } => nifti::read(path, gz, limits).map_err(err)?,
+        Format::Nrrd => nrrd::read(path, limits).map_err(err)?,
     };
     for layer in &mut map.layers {
         layer.grid = layer.grid.in_space(space);
@@ -504,34 +515,18 @@ pub fn read_header(path: &Path) -> Result<LabelMapHeader, LabelMapError> {
         path: path.to_path_buf(),
         message,
     };
-    // Opening a FIFO would block, and /dev/zero never ends.
-    crate::io::check_regular_file(path).map_err(|e| err(e.to_string()))?;
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().to_ascii_lowercase())
-        .unwrap_or_default();
-    if name.ends_with(".nii") || name.ends_with(".nii.gz") {
-        nifti::peek(path, name.ends_with(".gz")).map_err(err)
-    } else if name.ends_with(".nrrd") || name.ends_with(".nhdr") {
-        nrrd::peek(path).map_err(err)
-    } else {
-        Err(err(
-            "not a label map: expected .nii, .nii.gz, .nrrd, .seg.nrrd or .nhdr".into(),
-        ))
+    match readable_format(path)? {
+        Format::Nifti { gz } => nifti::peek(path, gz).map_err(err),
+        Format::Nrrd => nrrd::peek(path).map_err(err),
     }
 }
 
 /// The segment names a label map's header gives (3D Slicer's `.seg.nrrd` fields), read from
 /// the header alone; empty for NIfTI, which names no labels.
 pub fn declared_segments(path: &Path) -> Vec<Segment> {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().to_ascii_lowercase())
-        .unwrap_or_default();
-    if name.ends_with(".nrrd") || name.ends_with(".nhdr") {
-        nrrd::declared_segments(path)
-    } else {
-        Vec::new()
+    match format_of(path) {
+        Some(Format::Nrrd) => nrrd::declared_segments(path),
+        _ => Vec::new(),
     }
 }
 

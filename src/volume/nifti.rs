@@ -97,11 +97,8 @@ fn grid_of(h: &nifti::NiftiHeader) -> Result<(Grid, Option<String>), String> {
     ))
 }
 
-/// Reads a NIfTI-1 label map within `limits`.
-pub fn read(path: &Path, limits: &LabelMapLimits) -> Result<LabelMap, String> {
-    let gz = path
-        .file_name()
-        .is_some_and(|n| n.to_string_lossy().to_ascii_lowercase().ends_with(".gz"));
+/// Reads a NIfTI-1 label map (gzip-compressed when `gz`) within `limits`.
+pub fn read(path: &Path, gz: bool, limits: &LabelMapLimits) -> Result<LabelMap, String> {
     let file = std::fs::File::open(path).map_err(|e| format!("cannot read: {e}"))?;
     let map = crate::io::MappedFile::map(&file).map_err(|e| format!("cannot read: {e}"))?;
     let bytes: &[u8] = map.bytes();

@@ -378,8 +378,7 @@ pub fn read(path: &Path, limits: &LabelMapLimits) -> Result<LabelMap, String> {
             return Err(format!(
                 "its first {} layers hold{}",
                 layer + 1,
-                limits
-                    .too_many_labels(Some(n_labels))
+                super::too_many_labels(limits.max_labels, Some(n_labels))
                     .trim_start_matches("holds")
             ));
         }
