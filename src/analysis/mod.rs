@@ -8,4 +8,4 @@ pub use caps::{
     cap_candidates, detect_caps, Cap, CapCandidates, CapDetection, CapLook, CapParams, CapSearch,
 };
 pub use stack_axis::{stack_axis, stack_axis_with, StackAxis, StackAxisParams};
-pub use voxel_size::{voxel_size, AxisSpacing, VoxelSizeEstimate};
+pub use voxel_size::{coarse_axis, voxel_size, AxisSpacing, VoxelSizeEstimate};

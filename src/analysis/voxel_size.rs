@@ -52,6 +52,21 @@ impl VoxelSizeEstimate {
         Some(out)
     }
 
+    /// Bounds (smallest, largest; mm) on the spacing along x, y and z when the mesh lies on an
+    /// axis-aligned grid: exact where both offsets occur, h or 2h where only one does. None
+    /// when some axis is irregular or has no steps.
+    pub fn spacing_bounds(&self) -> Option<[(f64, f64); 3]> {
+        let mut out = [(0.0, 0.0); 3];
+        for (k, axis) in self.axes.iter().enumerate() {
+            out[k] = match *axis {
+                AxisSpacing::Spacing { mm } => (mm, mm),
+                AxisSpacing::OneStep { mm } => (mm, 2.0 * mm),
+                _ => return None,
+            };
+        }
+        Some(out)
+    }
+
     /// True when some axis shows offsets that no axis-aligned grid produces.
     pub fn is_irregular(&self) -> bool {
         self.axes
@@ -289,4 +304,18 @@ fn classify(mut clusters: Vec<(f64, usize)>, total: usize) -> AxisSpacing {
             share_explained: explained,
         }
     }
+}
+
+/// How much coarser than every other grid axis the slice axis must be (spacing ratio).
+pub const COARSE_AXIS_RATIO: f64 = 1.25;
+
+/// The grid axis (0 x, 1 y, 2 z) whose spacing is clearly the coarsest, at least
+/// [`COARSE_AXIS_RATIO`] times any other for every spacing the bounds (mm) allow: the slice
+/// axis of an anisotropic grid. None for a grid without one (isotropic, or two coarse axes).
+pub fn coarse_axis(bounds: [(f64, f64); 3]) -> Option<usize> {
+    (0..3).find(|&k| {
+        (0..3)
+            .filter(|&j| j != k)
+            .all(|j| bounds[k].0 >= COARSE_AXIS_RATIO * bounds[j].1)
+    })
 }

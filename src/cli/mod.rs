@@ -314,6 +314,7 @@ impl ContextArgs {
             find_smoothed_caps: true,
             measure_curvature: false,
             cap_params: Default::default(),
+            grid_mm: None,
             distance_scaling: self.distance_scaling,
             combine: match self.combine {
                 CombineArg::Product => Combine::Product,

@@ -490,7 +490,9 @@ fn process_structure(
         measure_curvature: file.binary.is_none(),
         ..settings.context.clone()
     };
-    if let Some((_, axis)) = header {
+    if let Some((voxel, axis)) = header {
+        // The mesh is in its grid's frame: the header's voxel size holds along its axes.
+        context_params.grid_mm = Some(voxel);
         context_params.axis = match settings.context.axis {
             AxisChoice::Auto => AxisChoice::Given(axis),
             // A configured axis is a world direction.

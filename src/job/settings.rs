@@ -392,6 +392,7 @@ pub fn resolve(s: &Settings) -> Result<StructureSettings, String> {
             find_smoothed_caps: true,
             measure_curvature: false,
             cap_params: Default::default(),
+            grid_mm: None,
             distance_scaling,
             combine,
         },

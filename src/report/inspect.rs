@@ -81,10 +81,21 @@ pub struct WeightStats {
 pub struct ContextSummary {
     /// The stack axis used (unit), if any.
     pub axis: Option<[f32; 3]>,
-    /// "given", "estimated", "too_weak" (no staircases found) or "off".
+    /// Where the axis came from: "given", "label_map_header", "grid" (the coarse axis of the
+    /// voxel grid the mesh lies on), "estimate_on_grid" (the Gauss-map estimate set to the
+    /// nearest axis of an isotropic grid), "estimated" (the Gauss-map estimate), "too_weak"
+    /// (no grid and too little flat area) or "off".
     pub axis_source: String,
-    /// Share of the surface area supporting the estimated axis.
+    /// Share of the surface area supporting the Gauss-map estimate (its support).
     pub axis_confidence: Option<f64>,
+    /// The voxel size (mm along x, y, z) of the axis-aligned grid the mesh lies on, known or
+    /// reconstructed: one value per axis, or the two it may be (h/2 and h steps not both seen).
+    pub voxel_mm: Option<[Vec<f64>; 3]>,
+    /// The Gauss-map estimate, when it found an axis (whether or not it was used).
+    pub estimated_axis: Option<[f64; 3]>,
+    /// Angle (degrees) between the axis used and the Gauss-map estimate, when the grid gave
+    /// the axis; over 5 degrees it is a warning.
+    pub estimate_off_deg: Option<f64>,
     pub n_staircase_vertices: usize,
     /// Staircase vertices as a share of all vertices.
     pub staircase_share: f64,
@@ -108,15 +119,19 @@ pub struct ContextSummary {
     pub warnings: Vec<String>,
 }
 
+/// Angle (degrees) between a grid's slice axis and the Gauss-map estimate above which a report
+/// warns.
+pub const AXIS_DISAGREEMENT_DEG: f64 = 5.0;
+
 /// Summarises a context analysis.
 pub fn context_summary(ctx: &Context, n_vertices: usize) -> ContextSummary {
     use crate::analysis::StackAxis;
-    let (axis_source, axis_confidence) = match ctx.estimated_axis {
-        Some(StackAxis::Found { confidence, .. }) => ("estimated", Some(confidence)),
-        Some(StackAxis::TooWeak { best_share }) => ("too_weak", Some(best_share)),
-        None if ctx.axis.is_some() => ("given", None),
-        None => ("off", None),
+    let axis_confidence = match ctx.estimated_axis {
+        Some(StackAxis::Found { confidence, .. }) => Some(confidence),
+        Some(StackAxis::TooWeak { best_share }) => Some(best_share),
+        None => None,
     };
+    let axis_source = ctx.axis_source.name();
     let n_staircase_vertices = ctx.staircase.as_ref().map_or(0, |s| s.n_staircase());
     let mut warnings = Vec::new();
     if let (Some(s), Some(a)) = (&ctx.staircase, ctx.axis) {
@@ -133,6 +148,14 @@ pub fn context_summary(ctx: &Context, n_vertices: usize) -> ContextSummary {
             ));
         }
     }
+    if let (Some(off), Some(a)) = (ctx.estimate_off_deg, ctx.axis) {
+        if off > AXIS_DISAGREEMENT_DEG {
+            warnings.push(format!(
+                "the voxel grid's slice axis ({:.3}, {:.3}, {:.3}) is used, but the flat faces point {off:.1} degrees away from it (the Gauss-map estimate): the surface may have been edited, or its largest flat parts are not slices",
+                a[0], a[1], a[2]
+            ));
+        }
+    }
     let w = ctx.weights.as_slice();
     let weights = WeightStats {
         min: w.iter().copied().fold(f32::INFINITY, f32::min),
@@ -145,6 +168,11 @@ pub fn context_summary(ctx: &Context, n_vertices: usize) -> ContextSummary {
         axis: ctx.axis,
         axis_source: axis_source.to_string(),
         axis_confidence,
+        voxel_mm: ctx
+            .grid_mm
+            .map(|g| g.map(|(lo, hi)| if lo == hi { vec![lo] } else { vec![lo, hi] })),
+        estimated_axis: ctx.estimated_axis.and_then(|e| e.axis()),
+        estimate_off_deg: ctx.estimate_off_deg,
         n_staircase_vertices,
         staircase_share: n_staircase_vertices as f64 / n_vertices.max(1) as f64,
         tau: ctx.staircase.as_ref().map(|s| s.tau),

@@ -25,6 +25,40 @@ pub enum AxisChoice {
     Given([f32; 3]),
 }
 
+/// Where the stack axis used came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AxisSource {
+    /// Given in the configuration or on the command line.
+    Given,
+    /// The coarse axis of the voxel grid, known (a label map's header) or reconstructed from
+    /// the mesh on an axis-aligned grid (Bade 2007, §3.2).
+    Grid,
+    /// The Gauss-map estimate (Moench 2012, §3.1) on an isotropic grid, set to the grid axis
+    /// nearest to it: on a grid, staircases only ever face its axes.
+    EstimateOnGrid,
+    /// The Gauss-map estimate: the grid is unknown or rotated.
+    Estimated,
+    /// No grid to read it from and too little flat area to estimate it.
+    TooWeak,
+    /// Staircase weighting is off.
+    Off,
+}
+
+impl AxisSource {
+    /// The name reports use.
+    pub fn name(self) -> &'static str {
+        match self {
+            AxisSource::Given => "given",
+            AxisSource::Grid => "grid",
+            AxisSource::EstimateOnGrid => "estimate_on_grid",
+            AxisSource::Estimated => "estimated",
+            AxisSource::TooWeak => "too_weak",
+            AxisSource::Off => "off",
+        }
+    }
+}
+
 /// What happens to detected caps.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -54,6 +88,11 @@ pub struct ContextParams {
     #[serde(skip)]
     pub measure_curvature: bool,
     pub cap_params: CapParams,
+    /// The voxel size (mm along the mesh's x, y, z) when it is known from elsewhere (a label
+    /// map's header, with the mesh in its grid's frame); otherwise it is reconstructed from
+    /// the mesh where the mesh lies on an axis-aligned grid.
+    #[serde(skip)]
+    pub grid_mm: Option<[f32; 3]>,
     /// Scaling of the distances to the reference structures (used when references are given).
     pub distance_scaling: DistanceScaling,
     pub combine: Combine,
@@ -69,6 +108,7 @@ impl Default for ContextParams {
             find_smoothed_caps: true,
             measure_curvature: false,
             cap_params: CapParams::default(),
+            grid_mm: None,
             distance_scaling: DistanceScaling::Linear,
             combine: Combine::Product,
         }
@@ -78,8 +118,16 @@ impl Default for ContextParams {
 /// The analysis behind the weights, for reports.
 #[derive(Debug, Clone)]
 pub struct Context {
-    /// The estimated axis (None when the axis was given or staircases are off).
+    /// The Gauss-map estimate of the axis (None when the axis was given or staircases are off).
     pub estimated_axis: Option<StackAxis>,
+    /// Where the axis used came from.
+    pub axis_source: AxisSource,
+    /// Bounds (smallest, largest; mm) on the voxel size along x, y, z: known, or reconstructed
+    /// from the mesh; None when the mesh lies on no axis-aligned grid.
+    pub grid_mm: Option<[(f64, f64); 3]>,
+    /// Angle (degrees) between the axis used and the Gauss-map estimate, when the axis came
+    /// from the grid and the estimate found one.
+    pub estimate_off_deg: Option<f64>,
     /// The axis used for staircase weighting, if any.
     pub axis: Option<[f32; 3]>,
     pub staircase: Option<StaircaseWeights>,
@@ -182,37 +230,42 @@ pub fn context_weights(
     context_in_mesh_order(&local, &local_topology, params, references).numbered_back(&order)
 }
 
-/// The estimated stack axis (none when given or without staircase weighting), the axis used
-/// (unit) and the staircase weights along it.
+/// The estimated stack axis (none when given or without staircase weighting), where the axis
+/// used came from, the axis used (unit) and the staircase weights along it.
 type Staircases = (
     Option<StackAxis>,
+    AxisSource,
     Option<[f32; 3]>,
     Option<StaircaseWeights>,
 );
 
-/// The stack axis (estimated, or given and normalised; none without staircase weighting) and
-/// the staircase weights along it.
+/// The stack axis (from the grid, estimated, or given and normalised; none without staircase
+/// weighting) and the staircase weights along it. `grid` bounds the voxel size (mm per axis)
+/// when the mesh lies on an axis-aligned grid.
 fn staircases(
     mesh: &Mesh,
     topology: &Topology,
     turns: &TurnLimits,
     params: &ContextParams,
     axis_params: &StackAxisParams,
+    grid: Option<[(f64, f64); 3]>,
 ) -> Staircases {
-    let (estimated_axis, axis) = if !params.staircase {
-        (None, None)
+    let (estimated_axis, source, axis) = if !params.staircase {
+        (None, AxisSource::Off, None)
     } else {
         match params.axis {
             AxisChoice::Given(a) => {
                 let len = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
                 (
                     None,
+                    AxisSource::Given,
                     (len > 0.0 && len.is_finite()).then(|| a.map(|x| x / len)),
                 )
             }
             AxisChoice::Auto => {
                 let est = stack_axis_with(turns, axis_params);
-                (Some(est), est.axis().map(|a| a.map(|x| x as f32)))
+                let (source, axis) = axis_on_grid(est.axis(), grid);
+                (Some(est), source, axis)
             }
         }
     };
@@ -220,7 +273,33 @@ fn staircases(
         let normals = turns.face_normals();
         staircase_weights_with(mesh, topology, normals, a, &params.staircase_params)
     });
-    (estimated_axis, axis, staircase)
+    (estimated_axis, source, axis, staircase)
+}
+
+/// The stack axis a grid and an estimate give together: the grid's coarse axis when it has
+/// one; on an isotropic grid the grid axis nearest to the estimate; off any grid the estimate.
+fn axis_on_grid(
+    estimate: Option<[f64; 3]>,
+    grid: Option<[(f64, f64); 3]>,
+) -> (AxisSource, Option<[f32; 3]>) {
+    let unit = |k: usize| {
+        let mut a = [0.0f32; 3];
+        a[k] = 1.0;
+        a
+    };
+    if let Some(k) = grid.and_then(crate::analysis::coarse_axis) {
+        return (AxisSource::Grid, Some(unit(k)));
+    }
+    match (grid, estimate) {
+        (Some(_), Some(e)) => {
+            let k = (0..3)
+                .max_by(|&i, &j| e[i].abs().total_cmp(&e[j].abs()))
+                .unwrap_or(2);
+            (AxisSource::EstimateOnGrid, Some(unit(k)))
+        }
+        (None, Some(e)) => (AxisSource::Estimated, Some(e.map(|x| x as f32))),
+        (_, None) => (AxisSource::TooWeak, None),
+    }
 }
 
 /// [`context_weights`] in the mesh's own numbering, whatever it is.
@@ -236,6 +315,11 @@ pub fn context_in_mesh_order(
         (axis_params.support_flat_deg, f32::INFINITY),
     ];
     let estimates_axis = params.staircase && params.axis == AxisChoice::Auto;
+    // The grid: known, or reconstructed where the mesh lies on an axis-aligned one.
+    let grid: Option<[(f64, f64); 3]> = match params.grid_mm {
+        Some(g) => Some(g.map(|h| (f64::from(h), f64::from(h)))),
+        None => crate::analysis::voxel_size(mesh, topology).spacing_bounds(),
+    };
     if params.caps == CapPolicy::Smooth && !params.find_smoothed_caps {
         // The staircases alone (caps are not looked for).
         let stairs = if params.staircase {
@@ -243,9 +327,9 @@ pub fn context_in_mesh_order(
             if estimates_axis {
                 turns.remember(&axis_limits);
             }
-            staircases(mesh, topology, &turns, params, &axis_params)
+            staircases(mesh, topology, &turns, params, &axis_params, grid)
         } else {
-            (None, None, None)
+            (None, AxisSource::Off, None, None)
         };
         return weighted(
             mesh,
@@ -253,6 +337,7 @@ pub fn context_in_mesh_order(
             references,
             stairs,
             CapDetection::not_searched(),
+            grid,
         );
     }
     // Cap detection's look at a smoothed copy is mostly serial (flood fills, growth): it starts
@@ -278,7 +363,7 @@ pub fn context_in_mesh_order(
             // Cap candidates need nothing from the staircases but their reach, applied at
             // the end.
             let found = rayon::join(
-                || staircases(mesh, topology, &turns, params, &axis_params),
+                || staircases(mesh, topology, &turns, params, &axis_params, grid),
                 || search.on_mesh(&turns, topology, &params.cap_params),
             );
             (curvature, found)
@@ -287,11 +372,11 @@ pub fn context_in_mesh_order(
     drop(search);
     let candidates = CapCandidates::new(plain_look, smoothed_look);
     let reach: Option<Vec<bool>> = stairs
-        .2
+        .3
         .as_ref()
         .map(|s| s.distance_mm.iter().map(|d| d.is_finite()).collect());
     let caps = candidates.settle(mesh, reach.as_deref(), &params.cap_params);
-    let mut context = weighted(mesh, params, references, stairs, caps);
+    let mut context = weighted(mesh, params, references, stairs, caps, grid);
     context.average_normal_curvature_deg = curvature;
     context
 }
@@ -302,8 +387,9 @@ fn weighted(
     mesh: &Mesh,
     params: &ContextParams,
     references: &[&TriangleBvh],
-    (estimated_axis, axis, staircase): Staircases,
+    (estimated_axis, axis_source, axis, staircase): Staircases,
     caps: CapDetection,
+    grid_mm: Option<[(f64, f64); 3]>,
 ) -> Context {
     let n = mesh.n_vertices();
     let reference_distance_mm =
@@ -330,8 +416,23 @@ fn weighted(
             weights.zero(c.vertices.iter().copied());
         }
     }
+    let estimate_off_deg = match (axis_source, estimated_axis.and_then(|e| e.axis()), axis) {
+        (AxisSource::Grid | AxisSource::EstimateOnGrid, Some(e), Some(a)) => Some(
+            (0..3)
+                .map(|k| e[k] * f64::from(a[k]))
+                .sum::<f64>()
+                .abs()
+                .min(1.0)
+                .acos()
+                .to_degrees(),
+        ),
+        _ => None,
+    };
     Context {
         estimated_axis,
+        axis_source,
+        grid_mm,
+        estimate_off_deg,
         axis,
         staircase,
         caps,

@@ -5,7 +5,7 @@ pub mod context;
 pub mod distance;
 pub mod staircase;
 
-pub use context::{context_weights, AxisChoice, CapPolicy, Context, ContextParams};
+pub use context::{context_weights, AxisChoice, AxisSource, CapPolicy, Context, ContextParams};
 pub use distance::{distance_weights, reference_distances, DistanceScaling};
 pub use staircase::{auto_tau, staircase_weights, StaircaseParams, StaircaseWeights, Tau};
 

@@ -362,7 +362,8 @@ fn inspect_context_and_context_aware_smoothing() {
     ]);
     assert_ok(&out);
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    assert_eq!(json["context"]["axis_source"], "estimated");
+    // An isotropic grid: the estimate, set to its nearest grid axis.
+    assert_eq!(json["context"]["axis_source"], "estimate_on_grid");
     assert_eq!(json["context"]["caps"].as_array().unwrap().len(), 3);
     assert!(json["context"]["n_staircase_vertices"].as_u64().unwrap() > 0);
     let options = destair::io::ReadOptions {

@@ -9,6 +9,7 @@ mod common;
 mod cfd;
 mod cli;
 mod context;
+mod context_other_tools;
 mod extract;
 mod honesty;
 mod io_corrupt;

@@ -160,3 +160,23 @@ fn counted_offsets_match_sorting_them_all() {
         assert_eq!(voxel_size(&m, &t).axes, sorted_estimate(&m, &t));
     }
 }
+
+#[test]
+fn the_coarse_axis_is_clearly_coarser_than_every_other() {
+    use destair::analysis::coarse_axis;
+    assert_eq!(
+        coarse_axis([(0.45, 0.45), (0.45, 0.45), (3.0, 3.0)]),
+        Some(2)
+    );
+    assert_eq!(coarse_axis([(2.0, 2.0), (0.5, 0.5), (0.5, 0.5)]), Some(0));
+    // Isotropic, or two coarse axes: none.
+    assert_eq!(coarse_axis([(0.4, 0.4), (0.4, 0.4), (0.4, 0.4)]), None);
+    assert_eq!(coarse_axis([(3.0, 3.0), (0.5, 0.5), (3.0, 3.0)]), None);
+    // Within 1.25: none. An axis known only as h or 2h counts by its smaller and larger bound.
+    assert_eq!(coarse_axis([(0.5, 0.5), (0.5, 0.5), (0.6, 0.6)]), None);
+    assert_eq!(
+        coarse_axis([(0.45, 0.9), (0.45, 0.45), (3.0, 3.0)]),
+        Some(2)
+    );
+    assert_eq!(coarse_axis([(0.45, 0.45), (0.45, 0.45), (0.5, 1.0)]), None);
+}
