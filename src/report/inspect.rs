@@ -62,6 +62,8 @@ pub struct CapSummary {
     pub n_faces: usize,
     pub area_mm2: f64,
     pub normal: [f32; 3],
+    /// Why it is a cap: its extent, and how the wall behind it runs on (a clipped end).
+    pub evidence: crate::analysis::CapEvidence,
 }
 
 /// Summary statistics of per-vertex weights.
@@ -189,6 +191,7 @@ pub fn context_summary(ctx: &Context, n_vertices: usize) -> ContextSummary {
                 n_faces: c.faces.len(),
                 area_mm2: c.area_mm2,
                 normal: c.normal,
+                evidence: c.evidence,
             })
             .collect(),
         reference_distance_min_mm: ctx
@@ -248,8 +251,19 @@ impl ContextSummary {
         for c in &self.caps {
             let _ = writeln!(
                 s,
-                "    cap: {} faces, {:.2} mm², normal ({:.3}, {:.3}, {:.3})",
-                c.n_faces, c.area_mm2, c.normal[0], c.normal[1], c.normal[2]
+                "    cap: {} faces, {:.2} mm², normal ({:.3}, {:.3}, {:.3}): a clipped end {:.1} x {:.1} mm, the wall behind it runs on past {:.1} mm with its cross-section x{:.2} at {:.1} mm, x{:.2} more at {:.1} mm",
+                c.n_faces,
+                c.area_mm2,
+                c.normal[0],
+                c.normal[1],
+                c.normal[2],
+                c.evidence.width_mm,
+                c.evidence.length_mm,
+                c.evidence.run_depth_mm,
+                c.evidence.span,
+                0.5 * c.evidence.section_depth_mm,
+                c.evidence.growth,
+                c.evidence.section_depth_mm,
             );
         }
         if let Some(d) = self.reference_distance_min_mm {

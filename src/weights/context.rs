@@ -320,6 +320,13 @@ pub fn context_in_mesh_order(
         Some(g) => Some(g.map(|h| (f64::from(h), f64::from(h)))),
         None => crate::analysis::voxel_size(mesh, topology).spacing_bounds(),
     };
+    let params = &ContextParams {
+        cap_params: CapParams {
+            grid_mm: grid.map(|g| g.map(|(_, hi)| hi as f32)),
+            ..params.cap_params
+        },
+        ..params.clone()
+    };
     if params.caps == CapPolicy::Smooth && !params.find_smoothed_caps {
         // The staircases alone (caps are not looked for).
         let stairs = if params.staircase {

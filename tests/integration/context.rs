@@ -795,14 +795,23 @@ fn caps_do_not_depend_on_the_order_of_the_faces() {
         &detect_caps(&mesh, &topology, None, &params.cap_params),
         &own,
     );
-    assert!(want.len() >= 4, "{} caps", want.len());
+    // The two discs and the cuboid's end of the cap cylinder (its flat sides are no caps).
+    assert!(want.len() >= 3, "{} caps", want.len());
     let plain = caps_of(&context_weights(&mesh, &topology, &params, &[]).caps, &own);
     for seed in [1, 2, 3] {
         let order = destair::bench::permutation(mesh.n_triangles(), seed);
         let permuted = destair::bench::relisted(&mesh, &order);
         let t = Topology::build(&permuted);
         let found = detect_caps(&permuted, &t, None, &params.cap_params);
-        assert_eq!(caps_of(&found, &order), want, "seed {seed}");
+        let got = caps_of(&found, &order);
+        if got != want {
+            eprintln!(
+                "DIFF seed {seed}: got {:?} want {:?}",
+                got.iter().map(|c| (c.len(), c[0])).collect::<Vec<_>>(),
+                want.iter().map(|c| (c.len(), c[0])).collect::<Vec<_>>()
+            );
+        }
+        assert_eq!(got, want, "seed {seed}");
         let renamed = destair::bench::renumbered(
             &permuted,
             &destair::bench::permutation(mesh.n_vertices(), seed),

@@ -136,3 +136,153 @@ fn a_known_grid_decides_over_the_mesh() {
         summary.warnings
     );
 }
+
+/// The context analysis with the defaults, tau given when `tau` is.
+fn analyse_tau(mesh: &Mesh, tau: Option<f32>) -> destair::weights::Context {
+    let mut params = ContextParams::default();
+    if let Some(t) = tau {
+        params.staircase_params.tau = destair::weights::Tau::Fixed(t);
+    }
+    analyse(mesh, &params)
+}
+
+fn near(a: [f32; 3], b: [f32; 3]) -> bool {
+    (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f32>() < 0.0025
+}
+
+/// The caps' normals are exactly `want` (each within about 3 degrees of one found, as many).
+fn assert_caps(name: &str, ctx: &destair::weights::Context, want: &[[f32; 3]]) {
+    let got: Vec<[f32; 3]> = ctx.caps.caps.iter().map(|c| c.normal).collect();
+    assert!(
+        got.len() == want.len() && want.iter().all(|w| got.iter().any(|g| near(*g, *w))),
+        "{name}: caps {got:?}, true {want:?}"
+    );
+}
+
+const Z: [f32; 3] = [0.0, 0.0, 1.0];
+const MINUS_Z: [f32; 3] = [0.0, 0.0, -1.0];
+
+#[test]
+fn corpus_caps_only_where_a_structure_was_cut() {
+    let Some(dir) = corpus() else { return };
+    for (file, caps) in [
+        // Its top and bottom slices (67 mm^2) and a 45-degree facet were caps.
+        ("neck/tumor.ply", vec![]),
+        ("neck/vein.ply", vec![Z, MINUS_Z]),
+        ("neck/trachea.ply", vec![Z, MINUS_Z]),
+        // 15 lobe tops and bottoms were caps.
+        ("blob-ellipsoids/blob.ply", vec![]),
+    ] {
+        let ctx = analyse_tau(&read(&dir.join(file)), None);
+        assert_caps(file, &ctx, &caps);
+        for cap in &ctx.caps.caps {
+            let e = cap.evidence;
+            assert!(e.growth <= 1.3 && e.span <= 2.0, "{file}: {e:?}");
+        }
+    }
+}
+
+/// A mesh turned by `r` (row-major rotation matrix).
+fn rotated(mesh: &Mesh, r: [[f64; 3]; 3]) -> Mesh {
+    let mut m = mesh.clone();
+    for p in m.positions_mut() {
+        let q = p.map(f64::from);
+        *p = std::array::from_fn(|i| (0..3).map(|k| r[i][k] * q[k]).sum::<f64>() as f32);
+    }
+    m
+}
+
+/// `n` random rotations (the same numbers everywhere: xorshift64* and Box-Muller, rows
+/// orthonormalised, the third their cross product).
+fn rotations(n: usize, seed: u64) -> Vec<[[f64; 3]; 3]> {
+    let mut state = seed;
+    let mut gauss = move || {
+        let mut uniform = || {
+            state ^= state >> 12;
+            state ^= state << 25;
+            state ^= state >> 27;
+            ((state.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        };
+        let (u, v) = (uniform(), uniform());
+        (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
+    };
+    let unit = |v: [f64; 3]| {
+        let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        v.map(|x| x / l)
+    };
+    (0..n)
+        .map(|_| {
+            let a = unit([gauss(), gauss(), gauss()]);
+            let r1 = [gauss(), gauss(), gauss()];
+            let d = (0..3).map(|k| r1[k] * a[k]).sum::<f64>();
+            let b = unit(std::array::from_fn(|k| r1[k] - d * a[k]));
+            let c = [
+                a[1] * b[2] - a[2] * b[1],
+                a[2] * b[0] - a[0] * b[2],
+                a[0] * b[1] - a[1] * b[0],
+            ];
+            [a, b, c]
+        })
+        .collect()
+}
+
+fn turn(r: [[f64; 3]; 3], v: [f32; 3]) -> [f32; 3] {
+    std::array::from_fn(|i| (0..3).map(|k| r[i][k] * f64::from(v[k])).sum::<f64>() as f32)
+}
+
+#[test]
+fn corpus_cut_ends_are_caps_in_eight_random_poses() {
+    let Some(dir) = corpus() else { return };
+    for (file, tau, caps) in [
+        ("neck/vein.ply", None, vec![Z, MINUS_Z]),
+        // Paper 004 section 4.3 after 50 Laplace iterations by VTK, tau 0.2 as the paper.
+        (
+            "cylinder-cuboid-50/cylinder_cuboid.ply",
+            Some(0.2),
+            vec![Z, MINUS_Z, [1.0, 0.0, 0.0]],
+        ),
+    ] {
+        let mesh = read(&dir.join(file));
+        assert_caps(file, &analyse_tau(&mesh, tau), &caps);
+        for (i, r) in rotations(8, 61).into_iter().enumerate() {
+            let ctx = analyse_tau(&rotated(&mesh, r), tau);
+            let want: Vec<[f32; 3]> = caps.iter().map(|&c| turn(r, c)).collect();
+            assert_caps(&format!("{file}, pose {i}"), &ctx, &want);
+            // Off any axis-aligned grid: the estimate, along the turned slice axis.
+            assert_eq!(ctx.axis_source, AxisSource::Estimated, "{file}, pose {i}");
+            let (a, t) = (ctx.axis.expect("an axis"), turn(r, Z));
+            let cos = (0..3).map(|k| a[k] * t[k]).sum::<f32>().abs();
+            assert!(cos > 0.9999, "{file}, pose {i}: axis {a:?}, true {t:?}");
+        }
+    }
+}
+
+#[derive(serde::Deserialize)]
+struct CapTruth {
+    caps: Option<Vec<[f32; 3]>>,
+    tau: Option<f32>,
+}
+
+#[test]
+fn phantoms_of_other_tools_caps_at_cut_ends_and_nowhere_else() {
+    // Blobs of other seeds and grids, tubes along the slice axis, the paper's cylinder with
+    // other radii, slices and smoothing. Not yet right, and named in the note:
+    // `tube-along-x` (its end discs, 3 slices tall, hold too few faces flat at every corner)
+    // and `cylinder-cuboid-r24-s3-l50` (its bottom disc and the wall, rounded into each other
+    // by smoothing, grow into one flat region).
+    let dir = phantoms();
+    let truth: std::collections::BTreeMap<String, CapTruth> =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("truth.json")).unwrap()).unwrap();
+    for name in [
+        "blob-s7",
+        "blob-s11",
+        "cylinder-cuboid-r12-s1.5-l30",
+        "cylinder-cuboid-r15-s2-l0",
+        "tube-along-z",
+        "tube-along-z-thin",
+    ] {
+        let t = &truth[name];
+        let ctx = analyse_tau(&read(&dir.join(format!("{name}.ply"))), t.tau);
+        assert_caps(name, &ctx, t.caps.as_deref().unwrap_or(&[]));
+    }
+}

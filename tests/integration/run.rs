@@ -545,13 +545,14 @@ skip = true
         tumor.split(',').nth(col).unwrap().parse::<f64>().unwrap(),
         worst
     );
-    // Beside the tumour the vein keeps its distance (the groove phantom, where it does not,
-    // is the guard's test below).
+    // Beside the tumour the vein does not come closer (the groove phantom, where it does, is
+    // the guard's test below). The tumour's flat top and bottom slices are terraces, smoothed
+    // like the rest (no distance weights here), so the gap may grow.
     let apart = pairs
         .iter()
         .find(|p| p["a"] == "tumor" && p["b"] == "vein")
         .unwrap();
-    assert!(apart["change_mm"].as_f64().unwrap().abs() < 0.01, "{apart}");
+    assert!(apart["change_mm"].as_f64().unwrap() > -0.01, "{apart}");
     assert_eq!(guard["repair_rounds"], 0);
 }
 

@@ -45,7 +45,9 @@ pub struct CapParams {
     /// Angle (degrees) the surface must turn to, relative to the region normal, within that
     /// reach for a border vertex to count as the rim of a cut.
     pub turn_deg: f32,
-    /// Least share of border vertices that must see that turn.
+    /// Least share of border vertices that must see that turn (a cut's rim all round; on a
+    /// smoothed mesh, whose rim is rounded and whose border ragged, fewer border vertices are
+    /// nearest to where the wall has turned).
     pub min_turning_border: f32,
     /// Least share of border vertices within staircase reach (when that is given; 0 disables).
     pub min_staircase_border: f32,
@@ -64,6 +66,26 @@ pub struct CapParams {
     /// at most this much per mm (degrees per mm), so rounded parts, flat at a fine sampling,
     /// are not examined.
     pub smoothed_copy_flat_deg_per_mm: f32,
+    /// Largest ratio of a region's length to its width (its largest to smallest extent in its
+    /// plane): a tube cut at 70 degrees to its axis gives 2.9.
+    pub max_aspect: f32,
+    /// A clipped end's wall runs on along the normal with the cut's cross-section: the
+    /// cross-section is measured down to this share of the region's width (its smallest
+    /// in-plane extent)...
+    pub section_depth_share: f32,
+    /// ...and the wall must run on to this share of its length (largest extent)...
+    pub run_depth_share: f32,
+    /// ...both at least this many voxels along the normal when the grid is known.
+    pub runs_on_slices: f32,
+    /// Largest growth (and, inverted, shrinkage) of the cross-section from half the section
+    /// depth to all of it.
+    pub max_section_growth: f32,
+    /// Largest cross-section at half the section depth, as a multiple of the region's area
+    /// (the rim's chamfers or rounding lie between).
+    pub max_section_span: f32,
+    /// The voxel size (mm along x, y, z) of the grid the mesh was made on, when known.
+    #[serde(skip)]
+    pub grid_mm: Option<[f32; 3]>,
 }
 
 impl Default for CapParams {
@@ -75,12 +97,19 @@ impl Default for CapParams {
             grow_total_deg: 25.0,
             turn_reach: 0.5,
             turn_deg: 75.0,
-            min_turning_border: 0.5,
+            min_turning_border: 0.2,
             min_staircase_border: 0.0,
             max_minority: 0.1,
             min_slope: 0.05,
             smoothed_copy_iterations: 10,
             smoothed_copy_flat_deg_per_mm: 0.5,
+            max_aspect: 3.5,
+            section_depth_share: 0.25,
+            run_depth_share: 1.0,
+            runs_on_slices: 2.0,
+            max_section_growth: 1.3,
+            max_section_span: 2.0,
+            grid_mm: None,
         }
     }
 }
@@ -96,6 +125,25 @@ pub struct Cap {
     /// Area-weighted unit normal (outward for outward-oriented meshes).
     pub normal: [f32; 3],
     pub area_mm2: f64,
+    /// Why it is a cap: the figures of the clipped-end test.
+    pub evidence: CapEvidence,
+}
+
+/// The figures that made a flat region a cap (a clipped end): its size and how the surface
+/// behind it runs on.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct CapEvidence {
+    /// Smallest and largest extent within its plane (mm).
+    pub width_mm: f32,
+    pub length_mm: f32,
+    /// Depth (mm) down to which the cross-section was measured, and to which the wall runs on.
+    pub section_depth_mm: f32,
+    pub run_depth_mm: f32,
+    /// Cross-section at half the section depth over the region's area (the rim's chamfers or
+    /// rounding make it exceed 1).
+    pub span: f64,
+    /// Cross-section at the section depth over that at half of it (1 for a straight tube).
+    pub growth: f64,
 }
 
 /// What cap detection found.
@@ -138,15 +186,15 @@ impl CapDetection {
     }
 }
 
-fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
 fn angle_deg(a: [f32; 3], b: [f32; 3]) -> f32 {
     (a[0] * b[0] + a[1] * b[1] + a[2] * b[2])
         .clamp(-1.0, 1.0)
         .acos()
         .to_degrees()
+}
+
+fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 const NONE: u32 = u32::MAX;
@@ -358,7 +406,10 @@ fn caps_of(
     let flat: Vec<bool> = (0..n_faces)
         .map(|f| !degenerate(f) && tris[f].iter().all(|&v| flat_vertex[v as usize]))
         .collect();
-    // Connected flat regions.
+    // Growth limits as cosines (no acos per visited face).
+    let cos_total = params.grow_total_deg.to_radians().cos();
+    // Connected flat regions. Flat faces of another orientation (a wall's pixel facet beside a
+    // cut's) are another region.
     let mut region = vec![NONE; n_faces];
     let mut regions: Vec<Vec<u32>> = Vec::new();
     let mut scratch = Vec::new();
@@ -398,7 +449,6 @@ fn caps_of(
     }
     // Growth limits as cosines (no acos per visited face).
     let cos_step = params.grow_step_deg.to_radians().cos();
-    let cos_total = params.grow_total_deg.to_radians().cos();
     for (id, faces) in kept.iter_mut().enumerate() {
         let id = id as u32;
         let mean = region_normal(mesh, faces);
@@ -430,8 +480,8 @@ fn caps_of(
             let mut scratch = taken
                 .ok()
                 .flatten()
-                .filter(|s| s.fits(mesh.n_vertices()))
-                .unwrap_or_else(|| RegionScratch::new(mesh.n_vertices()));
+                .filter(|s| s.fits(mesh.n_vertices(), n_faces))
+                .unwrap_or_else(|| RegionScratch::new(mesh.n_vertices(), n_faces));
             let verdict = examine_region(mesh, topology, normals, faces, &mut scratch, params);
             if let Ok(mut pool) = scratch_pool.lock() {
                 pool.push(scratch);

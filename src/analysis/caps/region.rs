@@ -2,7 +2,7 @@
 //! the side the surface leaves it on, how sharply the surface turns beyond the border, and its
 //! width; with the per-vertex scratch passed between regions.
 
-use super::{angle_deg, dot, region_area, unit_f32, Candidate, Cap, CapParams, NONE};
+use super::{angle_deg, dot, region_area, unit_f32, Candidate, Cap, CapEvidence, CapParams, NONE};
 use crate::mesh::geometry::triangle_area_vector;
 use crate::mesh::{Mesh, Topology};
 use rayon::prelude::*;
@@ -26,26 +26,30 @@ pub(super) struct RegionScratch {
     tag: u32,
     /// The outward search's distances.
     reached: Reached,
+    /// Per face: the tag of the last region that holds it.
+    face_stamp: Vec<u32>,
 }
 
 impl RegionScratch {
-    pub(super) fn new(n_vertices: usize) -> Self {
+    pub(super) fn new(n_vertices: usize, n_faces: usize) -> Self {
         Self {
             stamp: vec![(NONE, 0); n_vertices],
             tag: 0,
             reached: Reached::new(n_vertices),
+            face_stamp: vec![NONE; n_faces],
         }
     }
 
-    /// Whether the scratch is sized for a mesh of `n_vertices`.
-    pub(super) fn fits(&self, n_vertices: usize) -> bool {
-        self.stamp.len() == n_vertices
+    /// Whether the scratch is sized for a mesh of `n_vertices` and `n_faces`.
+    pub(super) fn fits(&self, n_vertices: usize, n_faces: usize) -> bool {
+        self.stamp.len() == n_vertices && self.face_stamp.len() == n_faces
     }
 
     /// A tag no vertex holds yet (all stamps cleared once every 2^32 - 2 regions).
     fn next_tag(&mut self) -> u32 {
         if self.tag == NONE - 1 {
             self.stamp.fill((NONE, 0));
+            self.face_stamp.fill(NONE);
             self.tag = 0;
         }
         self.tag += 1;
@@ -64,19 +68,26 @@ pub(super) fn examine_region(
     params: &CapParams,
 ) -> Verdict {
     let id = scratch.next_tag();
-    let RegionScratch { stamp, reached, .. } = scratch;
+    let RegionScratch {
+        stamp,
+        reached,
+        face_stamp,
+        ..
+    } = scratch;
     let (tris, p) = (mesh.triangles(), mesh.positions());
     // The region's vertices, each stamped with its id once (no sort of every corner and no
     // search per lookup: a region can be the whole of a finely sampled surface), with the
-    // number of the region's faces around it; and the sum of the area vectors, in face order
-    // as in `region_normal`.
+    // number of the region's faces around it; and the sum of the area vectors, in fixed point
+    // so that it does not depend on the order the file lists the faces in (the depths below
+    // are measured along the normal, and on a grid many vertices lie exactly on a slab's face).
     let mut vertices: Vec<u32> = Vec::new();
-    let mut area_sum = [0.0f64; 3];
+    let mut fixed_sum = [0i128; 3];
     for &f in faces {
+        face_stamp[f as usize] = id;
         let t = tris[f as usize];
         let a = triangle_area_vector(mesh, t);
         for k in 0..3 {
-            area_sum[k] += a[k] as f64;
+            fixed_sum[k] += (f64::from(a[k]) * FIXED_POINT).round() as i128;
         }
         for v in t {
             let s = &mut stamp[v as usize];
@@ -108,6 +119,7 @@ pub(super) fn examine_region(
         return Verdict::Other;
     }
     border.par_sort_unstable();
+    let area_sum = fixed_sum.map(|x| x as f64 / FIXED_POINT);
     let normal = unit_f32(area_sum);
     // Sign of the largest offset of the outside neighbours along the region normal, counted
     // where the slope is clear.
@@ -144,11 +156,21 @@ pub(super) fn examine_region(
     if up.min(down) as f32 > params.max_minority * (up + down) as f32 {
         return Verdict::Terrace;
     }
+    // A clipped end: the wall beyond the rim runs on along the normal with the cap's
+    // cross-section. The top of a lobe steps outward into the next terrace (its cross-section
+    // grows), a slab ends within a slice and the side of a tube lying across the normal
+    // within its width (the wall does not run on), a facet on a slope has the whole structure
+    // behind it (the cross-section is many times the facet).
+    let (width, length) = region_extent(p, &vertices, normal);
+    // A tube's cut is compact (a circle, an ellipse when cut obliquely); a long flat strip is
+    // the side of a tube lying across the normal, or a chamfer along one.
+    if length > params.max_aspect * width {
+        return Verdict::Other;
+    }
     // A cut leaves a rim where the wall turns away sharply (near 90 degrees for a tube cut
     // across); a flat facet of a rounded surface is followed by more facets at shallow angles.
     // Follow the surface outwards from the border up to a share of the region's width and see
     // how far it turns.
-    let width = region_width(p, &vertices, normal);
     let turned = turning_border(
         mesh,
         topology,
@@ -161,17 +183,233 @@ pub(super) fn examine_region(
     if (turned as f32) < params.min_turning_border * border.len() as f32 {
         return Verdict::Other;
     }
+    let slices = params.grid_mm.map_or(0.0, |g| {
+        params.runs_on_slices * (0..3).map(|k| normal[k].abs() * g[k]).sum::<f32>()
+    });
+    let depths = Depths {
+        section: (params.section_depth_share * width).max(slices),
+        run: (params.run_depth_share * length).max(slices),
+    };
+    let face_in_region = |f: u32| face_stamp[f as usize] == id;
+    let section = cross_sections(
+        mesh,
+        topology,
+        (&border, &in_region, &face_in_region),
+        (normal, length),
+        depths.section,
+        area_sum,
+        reached,
+    );
+    // The wall's run is followed only behind a region whose cross-section passed: it may
+    // reach far.
+    let is_cap = section.is_cut(params)
+        && slab(
+            mesh,
+            topology,
+            (&border, &in_region),
+            (normal, length),
+            depths.run,
+            reached,
+        )
+        .1;
     let mut sorted_faces = faces.to_vec();
     sorted_faces.par_sort_unstable();
-    Verdict::Cap(Candidate {
-        cap: Cap {
-            faces: sorted_faces,
-            vertices,
-            normal,
-            area_mm2: region_area(mesh, faces),
+    let cap = Cap {
+        faces: sorted_faces,
+        vertices,
+        normal,
+        area_mm2: region_area(mesh, faces),
+        evidence: CapEvidence {
+            width_mm: width,
+            length_mm: length,
+            section_depth_mm: depths.section,
+            run_depth_mm: depths.run,
+            span: section.span(),
+            growth: section.growth(),
         },
-        border,
-    })
+    };
+    if !is_cap {
+        return Verdict::Other;
+    }
+    Verdict::Cap(Candidate { cap, border })
+}
+
+/// Units per mm² of the fixed-point sum of area vectors (2^32: below float noise of any face
+/// a mesh in mm holds; sums stay far inside i128).
+const FIXED_POINT: f64 = 4_294_967_296.0;
+
+/// Relative margin at the slab's faces and the bins' edges, far above float noise in a normal
+/// and far below any spacing.
+const SNAP: f32 = 1e-3;
+
+/// How deep the surface behind a flat region is examined (mm below its plane).
+#[derive(Debug, Clone, Copy)]
+struct Depths {
+    /// The cross-section is measured down to here...
+    section: f32,
+    /// ...and the wall must run on at least this far.
+    run: f32,
+}
+
+/// How the cross-section of the part behind a flat region changes with depth: what tells a
+/// clipped end from the top of a lobe.
+#[derive(Debug, Clone, Copy)]
+struct CrossSections {
+    /// The region's own area projected on its plane (mm²).
+    cap_mm2: f64,
+    /// The cross-section enclosed by the surface reached from the rim at half the section
+    /// depth and at all of it (mm²).
+    half_mm2: f64,
+    full_mm2: f64,
+}
+
+impl CrossSections {
+    /// Cross-section at half the depth over the region's area.
+    fn span(&self) -> f64 {
+        if self.cap_mm2 > 0.0 {
+            self.half_mm2 / self.cap_mm2
+        } else {
+            f64::INFINITY
+        }
+    }
+
+    /// Cross-section at the depth over that at half of it.
+    fn growth(&self) -> f64 {
+        if self.half_mm2 > 0.0 {
+            self.full_mm2 / self.half_mm2
+        } else {
+            f64::INFINITY
+        }
+    }
+
+    /// Whether the cross-section neither grows nor shrinks much (a lobe widening below its top
+    /// terrace, a neck below a bulge) and does not dwarf the region (a facet on a slope).
+    fn is_cut(&self, params: &CapParams) -> bool {
+        let growth = self.growth();
+        growth <= f64::from(params.max_section_growth)
+            && growth * f64::from(params.max_section_growth) >= 1.0
+            && self.span() <= f64::from(params.max_section_span)
+    }
+}
+
+/// Cross-sections of the surface behind a flat region (`border`, vertices by `in_region`,
+/// faces by `face_in_region`) with outward unit `normal` and area vectors summing to
+/// `area_sum`, down to `depth` mm below its plane. By the divergence theorem the region and the
+/// surface reached from its rim within the slab, projected on the normal, enclose the
+/// cross-section at the slab's lower edge, so no plane has to be cut.
+fn cross_sections(
+    mesh: &Mesh,
+    topology: &Topology,
+    (border, in_region, face_in_region): (&[u32], &impl Fn(u32) -> bool, &impl Fn(u32) -> bool),
+    (normal, length): ([f32; 3], f32),
+    depth: f32,
+    area_sum: [f64; 3],
+    seen: &mut Reached,
+) -> CrossSections {
+    let tris = mesh.triangles();
+    let n = normal.map(f64::from);
+    let (patch, _) = slab(
+        mesh,
+        topology,
+        (border, in_region),
+        (normal, length),
+        depth,
+        seen,
+    );
+    // Projected area of the patch's faces by the depth of their deepest corner.
+    const BINS: usize = 16;
+    let mut bins = [0.0f64; BINS];
+    let reached = |w: u32| in_region(w) || seen.distance[w as usize] != f32::INFINITY;
+    for &v in &patch {
+        for &f in topology.vertex_faces(v as usize) {
+            let t = tris[f as usize];
+            // Each face once: at its first corner outside the region.
+            if face_in_region(f)
+                || t.iter().copied().find(|&w| !in_region(w)) != Some(v)
+                || !t.iter().all(|&w| reached(w))
+            {
+                continue;
+            }
+            let deepest = (t.iter())
+                .map(|&w| {
+                    if in_region(w) {
+                        0.0
+                    } else {
+                        seen.distance[w as usize]
+                    }
+                })
+                .fold(0.0f32, f32::max);
+            let a = triangle_area_vector(mesh, t);
+            // Nudged up: corners on the grid lie exactly on bin edges, and float noise in the
+            // normal (summed in face order) must not move them across.
+            let bin = (deepest / depth.max(f32::MIN_POSITIVE) * BINS as f32 + SNAP) as usize;
+            bins[bin.min(BINS - 1)] += 0.5 * (0..3).map(|k| a[k] as f64 * n[k]).sum::<f64>();
+        }
+    }
+    let cap_mm2 = 0.5 * (0..3).map(|k| area_sum[k] * n[k]).sum::<f64>();
+    let half_mm2 = cap_mm2 + bins[..BINS / 2].iter().sum::<f64>();
+    CrossSections {
+        cap_mm2,
+        half_mm2,
+        full_mm2: half_mm2 + bins[BINS / 2..].iter().sum::<f64>(),
+    }
+}
+
+/// The vertices reached breadth first from a region's rim (`border`, region vertices by
+/// `in_region`) without leaving the slab from slightly above its plane (outward unit `normal`)
+/// down to `depth` mm, nor the cylinder around the normal through the rim's centre within the
+/// region's length plus the depth (the slab behind a facet on a long wall would otherwise run
+/// along all of it), with their depth in `seen`; and whether the surface goes on below the
+/// slab (an edge leaves it there: the structure does not end within the depth).
+fn slab(
+    mesh: &Mesh,
+    topology: &Topology,
+    (border, in_region): (&[u32], &impl Fn(u32) -> bool),
+    (normal, length): ([f32; 3], f32),
+    depth: f32,
+    seen: &mut Reached,
+) -> (Vec<u32>, bool) {
+    let p = mesh.positions();
+    let n = normal.map(f64::from);
+    let centre: [f64; 3] = std::array::from_fn(|k| {
+        border.iter().map(|&v| p[v as usize][k] as f64).sum::<f64>() / border.len().max(1) as f64
+    });
+    let radius = f64::from(length + depth);
+    let within = |v: u32| {
+        let d: [f64; 3] = std::array::from_fn(|k| p[v as usize][k] as f64 - centre[k]);
+        let h = (0..3).map(|k| d[k] * n[k]).sum::<f64>();
+        (0..3).map(|k| d[k] * d[k]).sum::<f64>() - h * h <= radius * radius
+    };
+    let along = |v: u32| (0..3).map(|k| p[v as usize][k] as f64 * n[k]).sum::<f64>();
+    // The plane through the rim (its mean position along the normal).
+    let level = border.iter().map(|&v| along(v)).sum::<f64>() / border.len().max(1) as f64;
+    let depth_of = |v: u32| (level - along(v)) as f32;
+    let above = 0.1 * depth;
+    seen.clear();
+    let mut queue: Vec<u32> = border.to_vec();
+    for &v in border {
+        seen.set(v, 0.0);
+    }
+    let mut goes_on = false;
+    let mut next = 0;
+    while let Some(&v) = queue.get(next) {
+        next += 1;
+        for &u in topology.neighbors(v as usize) {
+            if in_region(u) || seen.distance[u as usize] != f32::INFINITY {
+                continue;
+            }
+            let d = depth_of(u);
+            // Vertices on the grid lie exactly on the slab's faces; a margin keeps float noise
+            // in the normal from moving them in or out.
+            if d > depth * (1.0 + SNAP) {
+                goes_on = true;
+            } else if d >= -above * (1.0 + SNAP) && within(u) {
+                seen.set(u, d.max(0.0));
+                queue.push(u);
+            }
+        }
+    }
+    (queue, goes_on)
 }
 
 /// Distances of the outward search from a region's border (mm; infinite where not reached),
@@ -277,9 +515,10 @@ fn at_least_angle(normal: [f32; 3], turn_deg: f32) -> impl Fn([f32; 3]) -> bool 
     }
 }
 
-/// Smallest extent of a region within its plane (mm): four standard deviations along the
-/// in-plane direction of least spread (a disk gives its diameter, a strip about its width).
-fn region_width(p: &[[f32; 3]], vertices: &[u32], normal: [f32; 3]) -> f32 {
+/// Smallest and largest extent of a region within its plane (mm): four standard deviations
+/// along the in-plane directions of least and most spread (a disk gives its diameter twice, a
+/// strip about its width and its length).
+fn region_extent(p: &[[f32; 3]], vertices: &[u32], normal: [f32; 3]) -> (f32, f32) {
     // An orthonormal basis (u, w) of the plane.
     let helper = if normal[0].abs() < 0.9 {
         [1.0, 0.0, 0.0]
@@ -319,9 +558,10 @@ fn region_width(p: &[[f32; 3]], vertices: &[u32], normal: [f32; 3]) -> f32 {
         syy += (y - my) * (y - my) / n;
         sxy += (x - mx) * (y - my) / n;
     }
-    // Smaller eigenvalue of the 2 x 2 covariance.
+    // Eigenvalues of the 2 x 2 covariance.
     let half_trace = 0.5 * (sxx + syy);
     let det = sxx * syy - sxy * sxy;
-    let min_var = (half_trace - (half_trace * half_trace - det).max(0.0).sqrt()).max(0.0);
-    (4.0 * min_var.sqrt()) as f32
+    let root = (half_trace * half_trace - det).max(0.0).sqrt();
+    let extent = |var: f64| (4.0 * var.max(0.0).sqrt()) as f32;
+    (extent(half_trace - root), extent(half_trace + root))
 }
