@@ -8,14 +8,17 @@
 //! orientation; then each region's border vertices are checked for the sign of the largest
 //! offset of their outside neighbours along the region normal: one direction (up to a small
 //! minority, for smoothed meshes) makes a cap. That test alone also accepts every flat facet of
-//! a convex surface, so two checks go beyond the paper: following the surface outwards from the
-//! border (up to half the region's width) it must turn sharply, as the wall at a cut
-//! does (75 degrees or more); and, when staircase reach is known, most of the border must lie
-//! within reach of a staircase, since a cap only matters where staircase smoothing would
-//! otherwise reach it (§4.3). A clipped end that cuts the grid obliquely is terraced on a
-//! binary surface, with no flat face to grow from; it is found by looking again on a copy
-//! smoothed by 10 Laplace iterations, where it is flat (the faces, not the positions, are
-//! what the copy contributes).
+//! a convex surface and the top of every lobe, so checks go beyond the paper: following the
+//! surface outwards from the border (up to half the region's width) it must turn sharply, as
+//! the wall at a cut does (75 degrees or more); the region must be a clipped end (compact, the
+//! wall behind it running on along the normal at least as far as the region is long, with the
+//! region's cross-section: a lobe's top steps outward into the next terrace, the side of a tube
+//! lying across the normal ends within the tube's width); and, when staircase reach is known,
+//! most of the border must lie within reach of a staircase, since a cap only matters where
+//! staircase smoothing would otherwise reach it (§4.3). A clipped end that cuts the grid
+//! obliquely is terraced on a binary surface, with no flat face to grow from; it is found by
+//! looking again on a copy smoothed by 10 Laplace iterations, where it is flat (the faces, not
+//! the positions, are what the copy contributes).
 
 mod region;
 
@@ -473,16 +476,17 @@ fn caps_of(
     // A grown region's verdict depends only on its faces (a face goes to the first region
     // that reaches it), so all regions are grown first, then examined side by side (a large
     // one with its large steps in parallel too) and counted in order.
-    let verdicts: Vec<Verdict> = kept
-        .par_iter()
-        .map(|faces| {
+    let gaps = terrace_gaps(mesh, &kept);
+    let verdicts: Vec<Verdict> = (kept.par_iter().zip(&gaps))
+        .map(|(faces, &gap)| {
             let taken = scratch_pool.lock().map(|mut pool| pool.pop());
             let mut scratch = taken
                 .ok()
                 .flatten()
                 .filter(|s| s.fits(mesh.n_vertices(), n_faces))
                 .unwrap_or_else(|| RegionScratch::new(mesh.n_vertices(), n_faces));
-            let verdict = examine_region(mesh, topology, normals, faces, &mut scratch, params);
+            let verdict =
+                examine_region(mesh, topology, normals, (faces, gap), &mut scratch, params);
             if let Ok(mut pool) = scratch_pool.lock() {
                 pool.push(scratch);
             }
@@ -502,6 +506,52 @@ fn caps_of(
         }
     }
     look
+}
+
+/// Per region, the spacing (mm) of the terraces facing the same way (within 2 degrees): on a
+/// mesh from slices whose grid is unknown (rotated), how deep to look behind a flat region for
+/// the next terrace. It is the smallest gap between the planes of consecutive such regions
+/// that another gap repeats (within 5 %): slices repeat, a vessel's far end or a side branch
+/// does not. Infinite where there is none.
+fn terrace_gaps(mesh: &Mesh, regions: &[Vec<u32>]) -> Vec<f32> {
+    let (tris, p) = (mesh.triangles(), mesh.positions());
+    // Each region's normal and the level of its plane along it (the mean of its first corners).
+    let planes: Vec<([f32; 3], f64)> = regions
+        .par_iter()
+        .map(|faces| {
+            let n = region_normal(mesh, faces);
+            let level = faces
+                .iter()
+                .map(|&f| {
+                    let q = p[tris[f as usize][0] as usize];
+                    (0..3).map(|k| f64::from(q[k] * n[k])).sum::<f64>()
+                })
+                .sum::<f64>()
+                / faces.len().max(1) as f64;
+            (n, level)
+        })
+        .collect();
+    let cos_parallel = 2.0f32.to_radians().cos();
+    planes
+        .par_iter()
+        .map(|&(n, _)| {
+            let mut levels: Vec<f64> = (planes.iter())
+                .filter(|&&(m, _)| dot(n, m) >= cos_parallel)
+                .map(|&(_, level)| level)
+                .collect();
+            levels.sort_unstable_by(f64::total_cmp);
+            // Gaps between distinct planes (regions of one terrace split in two are one).
+            let mut gaps: Vec<f64> = levels
+                .windows(2)
+                .map(|w| w[1] - w[0])
+                .filter(|&g| g > 1e-3)
+                .collect();
+            gaps.sort_unstable_by(f64::total_cmp);
+            gaps.windows(2)
+                .find(|w| w[1] <= 1.05 * w[0])
+                .map_or(f32::INFINITY, |w| w[0] as f32)
+        })
+        .collect()
 }
 
 /// Area of a set of faces (mm²).

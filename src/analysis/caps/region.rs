@@ -1,6 +1,7 @@
 //! Examining one grown flat region (the checks of cap detection after growth): its border,
-//! the side the surface leaves it on, how sharply the surface turns beyond the border, and its
-//! width; with the per-vertex scratch passed between regions.
+//! the side the surface leaves it on, how sharply the surface turns beyond the border, its
+//! extent, and how the part behind it runs on (its cross-section with depth); with the
+//! per-vertex scratch passed between regions.
 
 use super::{angle_deg, dot, region_area, unit_f32, Candidate, Cap, CapEvidence, CapParams, NONE};
 use crate::mesh::geometry::triangle_area_vector;
@@ -24,7 +25,7 @@ pub(super) struct RegionScratch {
     stamp: Vec<(u32, u32)>,
     /// The last tag handed out (tags only grow, so no vertex holds a new region's tag).
     tag: u32,
-    /// The outward search's distances.
+    /// The searches' per-vertex figures (path lengths, depths).
     reached: Reached,
     /// Per face: the tag of the last region that holds it.
     face_stamp: Vec<u32>,
@@ -63,7 +64,7 @@ pub(super) fn examine_region(
     mesh: &Mesh,
     topology: &Topology,
     normals: &[[f32; 3]],
-    faces: &[u32],
+    (faces, terrace_gap): (&[u32], f32),
     scratch: &mut RegionScratch,
     params: &CapParams,
 ) -> Verdict {
@@ -183,9 +184,15 @@ pub(super) fn examine_region(
     if (turned as f32) < params.min_turning_border * border.len() as f32 {
         return Verdict::Other;
     }
-    let slices = params.grid_mm.map_or(0.0, |g| {
-        params.runs_on_slices * (0..3).map(|k| normal[k].abs() * g[k]).sum::<f32>()
-    });
+    // The slices along the normal: the grid's spacing, or (grid unknown) the gap to the next
+    // terrace facing the same way when it is within the region's width (a tube's far end
+    // is no terrace).
+    let slice = match params.grid_mm {
+        Some(g) => (0..3).map(|k| normal[k].abs() * g[k]).sum::<f32>(),
+        None if terrace_gap <= width => terrace_gap,
+        None => 0.0,
+    };
+    let slices = params.runs_on_slices * slice;
     let depths = Depths {
         section: (params.section_depth_share * width).max(slices),
         run: (params.run_depth_share * length).max(slices),
@@ -412,7 +419,8 @@ fn slab(
     (queue, goes_on)
 }
 
-/// Distances of the outward search from a region's border (mm; infinite where not reached),
+/// Per-vertex figures of a search behind a region's border (the turning test's path lengths,
+/// the slab's depths; mm; infinite where not reached),
 /// one per vertex of the mesh and kept between regions: a search resets what it reached, so
 /// no region pays for clearing or hashing the whole mesh.
 struct Reached {
