@@ -8,5 +8,5 @@ pub use caps::{
     cap_candidates, detect_caps, Cap, CapCandidates, CapDetection, CapEvidence, CapLook, CapParams,
     CapSearch,
 };
-pub use stack_axis::{stack_axis, stack_axis_with, StackAxis, StackAxisParams};
+pub use stack_axis::{stack_axis, stack_axis_with, AxisEvidence, StackAxis, StackAxisParams};
 pub use voxel_size::{coarse_axis, voxel_size, AxisSpacing, VoxelSizeEstimate};

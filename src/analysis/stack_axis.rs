@@ -19,6 +19,16 @@
 //! surface faces the stack axis marching cubes samples it at the fine in-plane spacing, so such
 //! faces surround the axis on all sides, while a smoothed terrace, curved like a dome, lies on
 //! one side and alone would pull the axis off by a degree or more.
+//!
+//! Where that finds too little, a second look takes the small flat areas paper 004 (Table 5)
+//! estimates from: faces flat at their own sampling by their vertices, or lying in one plane
+//! with two of their three edge neighbours (the border faces of a small area, which the vertex
+//! test misses: on a sphere with 1/8 of its top slice cut flat, 0.11 % of the area by vertices,
+//! 0.49 % with the border). Smoothed binary surfaces keep planar facets in oblique directions
+//! of that size (a VTK-smoothed neck tumour: 0.5-1.0 % of its area, in mirror pairs), so such
+//! an axis counts only when it has at least twice the support of any other direction, one
+//! connected flat area holds the minimum share on its own, and that area is flat (its normals
+//! spread by at most 0.25 degrees; smoothed facets by 0.6-2); otherwise the answer is too weak.
 
 use crate::mesh::geometry::triangle_area_vector;
 use crate::mesh::{Mesh, Topology};
@@ -76,9 +86,34 @@ pub enum StackAxis {
         axis: [f64; 3],
         confidence: f64,
         n_candidates: usize,
+        /// Support share of the best candidate at least 10 degrees from the axis (0 if none):
+        /// how clearly the axis stands out.
+        runner_up: f64,
+        /// What the axis was found from.
+        evidence: AxisEvidence,
     },
     /// No direction stands out: the mesh shows no staircases to estimate from.
     TooWeak { best_share: f64 },
+}
+
+/// What a stack axis was found from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AxisEvidence {
+    /// Terraces and caps flat at the mm scale (the paper's clusters).
+    Terraces,
+    /// One small flat area, alone in its direction (paper 004 Table 5's weak case).
+    SmallFlatArea,
+}
+
+impl AxisEvidence {
+    /// How reports name it.
+    pub fn describe(self) -> &'static str {
+        match self {
+            AxisEvidence::Terraces => "terraces",
+            AxisEvidence::SmallFlatArea => "one small flat area",
+        }
+    }
 }
 
 impl StackAxis {
@@ -120,50 +155,247 @@ pub fn stack_axis(mesh: &Mesh, topology: &Topology, params: &StackAxisParams) ->
 /// [`stack_axis`] of the mesh whose normals `turns` holds (computed once for every analysis
 /// of the mesh).
 pub fn stack_axis_with(turns: &TurnLimits, params: &StackAxisParams) -> StackAxis {
-    let mesh = turns.mesh();
     let flat = turns.within(params.flat_deg, params.flat_deg_per_mm);
     let support = turns.within(params.support_flat_deg, f32::INFINITY);
+    let all_flat = |flags: &[bool], t: [u32; 3]| t.iter().all(|&v| flags[v as usize]);
+    let first = estimate(
+        turns,
+        &|_, t| all_flat(&flat, t),
+        &|_, t| all_flat(&support, t),
+        params,
+    );
+    let first_share = match first {
+        StackAxis::Found { .. } => return first,
+        StackAxis::TooWeak { best_share } => best_share,
+    };
+    // The second look: faces flat by their vertices or lying in one plane with two of their
+    // edge neighbours (the border faces of a small flat area, which the vertex test misses).
+    let coplanar = coplanar_faces(turns, params.support_flat_deg, 2);
+    let tris = turns.mesh().triangles();
+    let small: Vec<bool> = (0..tris.len())
+        .into_par_iter()
+        .map(|f| coplanar[f] || all_flat(&support, tris[f]))
+        .collect();
+    let second = estimate(turns, &|f, _| small[f], &|f, _| small[f], params);
+    let StackAxis::Found {
+        axis,
+        confidence,
+        n_candidates,
+        runner_up,
+        ..
+    } = second
+    else {
+        return too_weak(first_share);
+    };
+    let area = largest_flat_area(turns, &small, axis, params.support_deg);
+    // Alone in its direction, one connected area rather than scattered facets, and flat
+    // rather than a facet smoothing has bent.
+    if confidence < SMALL_AREA_LEAD * runner_up
+        || area.share < params.min_support_share
+        || area.spread_deg > SMALL_AREA_SPREAD_DEG
+    {
+        return StackAxis::TooWeak {
+            best_share: first_share,
+        };
+    }
+    StackAxis::Found {
+        axis,
+        confidence,
+        n_candidates,
+        runner_up,
+        evidence: AxisEvidence::SmallFlatArea,
+    }
+}
+
+/// A small flat area names the axis only when it has at least this many times the support of
+/// any other direction: a smoothed surface keeps planar facets in several directions at once.
+const SMALL_AREA_LEAD: f64 = 2.0;
+
+/// ...and when its normals spread by at most this much (degrees, root mean square): a cut is
+/// flat to the bit, while the planar facets smoothing leaves are bent (0.65-2 degrees measured
+/// on blobs after 30-80 VTK Laplace iterations).
+const SMALL_AREA_SPREAD_DEG: f64 = 0.25;
+
+/// The largest edge-connected set of admitted faces whose normals lie within a given angle of
+/// an axis line: its share of the surface area, and how far its normals spread.
+struct FlatArea {
+    share: f64,
+    /// Area-weighted root mean square angle between its face normals and their mean (degrees).
+    spread_deg: f64,
+}
+
+fn largest_flat_area(
+    turns: &TurnLimits,
+    admitted: &[bool],
+    axis: [f64; 3],
+    within_deg: f64,
+) -> FlatArea {
+    let mesh = turns.mesh();
+    let topology = turns.topology();
+    let tris = mesh.triangles();
+    let normals = turns.face_normals();
+    let cos_within = within_deg.to_radians().cos();
+    let axis32 = axis.map(|x| x as f32);
+    let member: Vec<bool> = (0..tris.len())
+        .map(|f| admitted[f] && dot32(normals[f], axis32).abs() >= cos_within)
+        .collect();
+    let area = |f: usize| {
+        let v = triangle_area_vector(mesh, tris[f]).map(f64::from);
+        0.5 * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+    };
+    // A face's normal turned to the axis' side, as f64.
+    let aligned = |f: usize| {
+        let n = normals[f].map(f64::from);
+        if dot(n, axis) < 0.0 {
+            n.map(|x| -x)
+        } else {
+            n
+        }
+    };
+    let mut seen = vec![false; tris.len()];
+    let mut best: (f64, Vec<usize>) = (0.0, Vec::new());
+    let mut stack = Vec::new();
+    for start in 0..tris.len() {
+        if !member[start] || seen[start] {
+            continue;
+        }
+        seen[start] = true;
+        stack.push(start);
+        let mut faces = Vec::new();
+        while let Some(f) = stack.pop() {
+            faces.push(f);
+            for &v in &tris[f] {
+                for &g in topology.vertex_faces(v as usize) {
+                    let g = g as usize;
+                    let shares_edge = tris[g].iter().filter(|w| tris[f].contains(w)).count() == 2;
+                    if member[g] && !seen[g] && shares_edge {
+                        seen[g] = true;
+                        stack.push(g);
+                    }
+                }
+            }
+        }
+        let sum: f64 = faces.iter().map(|&f| area(f)).sum();
+        if sum > best.0 {
+            best = (sum, faces);
+        }
+    }
+    let total = deterministic_sum(tris.len(), area);
+    let (region_area, faces) = best;
+    let mean = faces.iter().fold([0.0; 3], |m, &f| {
+        let (a, n) = (area(f), aligned(f));
+        std::array::from_fn(|k| m[k] + a * n[k])
+    });
+    let spread_deg = match normalize(mean) {
+        Some(mean) if region_area > 0.0 => {
+            let square_sum: f64 = faces
+                .iter()
+                .map(|&f| area(f) * dot(aligned(f), mean).clamp(-1.0, 1.0).acos().powi(2))
+                .sum();
+            (square_sum / region_area).sqrt().to_degrees()
+        }
+        _ => 0.0,
+    };
+    FlatArea {
+        share: if total > 0.0 {
+            region_area / total
+        } else {
+            0.0
+        },
+        spread_deg,
+    }
+}
+
+/// Per face: whether its normal lies within `max_deg` of the normals of at least `min_agree`
+/// of its edge neighbours (faces without area never agree).
+fn coplanar_faces(turns: &TurnLimits, max_deg: f32, min_agree: usize) -> Vec<bool> {
+    let mesh = turns.mesh();
+    let topology = turns.topology();
+    let normals = turns.face_normals();
+    let cos_max = f64::from(max_deg).to_radians().cos();
+    let tris = mesh.triangles();
+    (0..tris.len())
+        .into_par_iter()
+        .map(|f| {
+            let n = normals[f];
+            if n == [0.0; 3] {
+                return false;
+            }
+            let t = tris[f];
+            let mut agree = 0;
+            for k in 0..3 {
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                let shares_edge = |g: u32| g as usize != f && tris[g as usize].contains(&b);
+                if topology
+                    .vertex_faces(a as usize)
+                    .iter()
+                    .any(|&g| shares_edge(g) && dot32(n, normals[g as usize]) >= cos_max)
+                {
+                    agree += 1;
+                }
+            }
+            agree >= min_agree
+        })
+        .collect()
+}
+
+fn dot32(a: [f32; 3], b: [f32; 3]) -> f64 {
+    (0..3).map(|k| f64::from(a[k]) * f64::from(b[k])).sum()
+}
+
+/// One look: the clusters of the normals of the faces `candidate` admits give the candidate
+/// axes; the faces `support` admits give each its share and refine the winner.
+fn estimate(
+    turns: &TurnLimits,
+    candidate: &(dyn Fn(usize, [u32; 3]) -> bool + Sync),
+    support: &(dyn Fn(usize, [u32; 3]) -> bool + Sync),
+    params: &StackAxisParams,
+) -> StackAxis {
+    let mesh = turns.mesh();
     // Evidence is the area of flat faces, not a face count: slivers (which marching cubes makes
     // wherever the surface passes close to a grid point) then cannot outvote real terraces.
     // Unit normal and area of every face whose corners all pass `flat`, in face order: fixed
     // blocks of faces in parallel, each a plain loop, joined in block order.
-    let unit_normals = |flat: &[bool]| -> (Vec<[f64; 3]>, Vec<f64>) {
-        let blocks: Vec<(Vec<[f64; 3]>, Vec<f64>)> = mesh
-            .triangles()
-            .par_chunks(1 << 16)
-            .map(|block| {
-                let mut out = (Vec::new(), Vec::new());
-                for &t in block {
-                    if !(flat[t[0] as usize] && flat[t[1] as usize] && flat[t[2] as usize]) {
-                        continue;
+    let unit_normals =
+        |admit: &(dyn Fn(usize, [u32; 3]) -> bool + Sync)| -> (Vec<[f64; 3]>, Vec<f64>) {
+            const BLOCK: usize = 1 << 16;
+            let blocks: Vec<(Vec<[f64; 3]>, Vec<f64>)> = mesh
+                .triangles()
+                .par_chunks(BLOCK)
+                .enumerate()
+                .map(|(b, block)| {
+                    let mut out = (Vec::new(), Vec::new());
+                    for (i, &t) in block.iter().enumerate() {
+                        if !admit(b * BLOCK + i, t) {
+                            continue;
+                        }
+                        let v = triangle_area_vector(mesh, t).map(f64::from);
+                        let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+                        if len > 0.0 && len.is_finite() {
+                            out.0.push(v.map(|x| x / len));
+                            out.1.push(0.5 * len);
+                        }
                     }
-                    let v = triangle_area_vector(mesh, t).map(f64::from);
-                    let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-                    if len > 0.0 && len.is_finite() {
-                        out.0.push(v.map(|x| x / len));
-                        out.1.push(0.5 * len);
-                    }
-                }
-                out
-            })
-            .collect();
-        let n = blocks.iter().map(|b| b.0.len()).sum();
-        let mut all = (Vec::with_capacity(n), Vec::with_capacity(n));
-        for (normals, areas) in blocks {
-            all.0.extend_from_slice(&normals);
-            all.1.extend_from_slice(&areas);
-        }
-        all
-    };
-    let (normals, areas) = unit_normals(&flat);
-    let (support_normals, support_areas) = unit_normals(&support);
+                    out
+                })
+                .collect();
+            let n = blocks.iter().map(|b| b.0.len()).sum();
+            let mut all = (Vec::with_capacity(n), Vec::with_capacity(n));
+            for (normals, areas) in blocks {
+                all.0.extend_from_slice(&normals);
+                all.1.extend_from_slice(&areas);
+            }
+            all
+        };
+    let (normals, areas) = unit_normals(candidate);
+    let (support_normals, support_areas) = unit_normals(support);
     // Shares are of the whole surface, so a mesh with little flat area gives little evidence.
     let total_area = deterministic_sum(mesh.n_triangles(), |f| {
         let v = triangle_area_vector(mesh, mesh.triangles()[f]);
         0.5 * (v.iter().map(|&x| (x as f64).powi(2)).sum::<f64>()).sqrt()
     });
     if normals.is_empty() || total_area <= 0.0 {
-        return StackAxis::TooWeak { best_share: 0.0 };
+        return too_weak(0.0);
     }
     // Bins of half the radius over [-1, 1]^3; each normal counts at n and -n.
     let bin = params.radius / 2.0;
@@ -286,12 +518,9 @@ pub fn stack_axis_with(turns: &TurnLimits, params: &StackAxisParams) -> StackAxi
             }
         }) / total_area
     };
-    let Some((best, best_share)) = candidates
-        .iter()
-        .map(|&c| (c, support(c)))
-        .max_by(|x, y| x.1.total_cmp(&y.1))
-    else {
-        return StackAxis::TooWeak { best_share: 0.0 };
+    let shares: Vec<([f64; 3], f64)> = candidates.iter().map(|&c| (c, support(c))).collect();
+    let Some(&(best, best_share)) = shares.iter().max_by(|x, y| x.1.total_cmp(&y.1)) else {
+        return too_weak(0.0);
     };
     // Refine from the supporting faces (area-weighted, sign-aligned mean), a few rounds.
     let mut axis = best;
@@ -317,11 +546,27 @@ pub fn stack_axis_with(turns: &TurnLimits, params: &StackAxisParams) -> StackAxi
         .filter(|&&n| dot(n, axis).abs() >= cos_support)
         .count();
     if share < params.min_support_share || count < params.min_support_faces {
-        return StackAxis::TooWeak { best_share: share };
+        return too_weak(share);
     }
+    // The best other direction (a candidate clearly apart from the axis).
+    let cos_apart = RUNNER_UP_APART_DEG.to_radians().cos();
+    let runner_up = shares
+        .iter()
+        .filter(|(c, _)| dot(*c, axis).abs() < cos_apart)
+        .map(|&(_, s)| s)
+        .fold(0.0, f64::max);
     StackAxis::Found {
         axis,
         confidence: share,
         n_candidates: candidates.len(),
+        runner_up,
+        evidence: AxisEvidence::Terraces,
     }
+}
+
+/// Candidates at least this far from the winner count as other directions (degrees).
+const RUNNER_UP_APART_DEG: f64 = 10.0;
+
+fn too_weak(best_share: f64) -> StackAxis {
+    StackAxis::TooWeak { best_share }
 }

@@ -154,6 +154,11 @@ impl<'a> TurnLimits<'a> {
         self.mesh
     }
 
+    /// The mesh's topology (vertex-face incidence).
+    pub fn topology(&self) -> &'a Topology {
+        self.topology
+    }
+
     /// Per vertex: whether its normal curvature is at most `max_deg` and its turn per mm at
     /// most `max_deg_per_mm` (false where undefined). The same decision as comparing
     /// [`vertex_normal_turn`]'s values, but the arctangent is taken only for faces near a

@@ -90,6 +90,12 @@ pub struct ContextSummary {
     pub axis_source: String,
     /// Share of the surface area supporting the Gauss-map estimate (its support).
     pub axis_confidence: Option<f64>,
+    /// What the Gauss-map estimate was found from: "terraces" or "small_flat_area" (one flat
+    /// area alone in its direction, paper 004 Table 5's weak case).
+    pub axis_evidence: Option<crate::analysis::AxisEvidence>,
+    /// Support share of the best other direction (at least 10 degrees from the estimate): how
+    /// clearly the estimate stands out.
+    pub axis_runner_up: Option<f64>,
     /// The voxel size (mm along x, y, z) of the axis-aligned grid the mesh lies on, known or
     /// reconstructed: one value per axis, or the two it may be (h/2 and h steps not both seen).
     pub voxel_mm: Option<[Vec<f64>; 3]>,
@@ -133,6 +139,14 @@ pub fn context_summary(ctx: &Context, n_vertices: usize) -> ContextSummary {
         Some(StackAxis::TooWeak { best_share }) => Some(best_share),
         None => None,
     };
+    let (axis_evidence, axis_runner_up) = match ctx.estimated_axis {
+        Some(StackAxis::Found {
+            evidence,
+            runner_up,
+            ..
+        }) => (Some(evidence), Some(runner_up)),
+        _ => (None, None),
+    };
     let axis_source = ctx.axis_source.name();
     let n_staircase_vertices = ctx.staircase.as_ref().map_or(0, |s| s.n_staircase());
     let mut warnings = Vec::new();
@@ -170,6 +184,8 @@ pub fn context_summary(ctx: &Context, n_vertices: usize) -> ContextSummary {
         axis: ctx.axis,
         axis_source: axis_source.to_string(),
         axis_confidence,
+        axis_evidence,
+        axis_runner_up,
         voxel_mm: ctx
             .grid_mm
             .map(|g| g.map(|(lo, hi)| if lo == hi { vec![lo] } else { vec![lo, hi] })),
@@ -209,9 +225,17 @@ impl ContextSummary {
         let mut s = String::from("context\n");
         match (self.axis, self.axis_source.as_str()) {
             (Some(a), src) => {
-                let conf = self.axis_confidence.map_or(String::new(), |c| {
+                let mut conf = self.axis_confidence.map_or(String::new(), |c| {
                     format!(", {:.2} % of the area supports it", 100.0 * c)
                 });
+                if let (Some(e), Some(r)) = (self.axis_evidence, self.axis_runner_up) {
+                    let next = if r > 0.0 {
+                        format!("next direction {:.2} %", 100.0 * r)
+                    } else {
+                        "no other direction".to_string()
+                    };
+                    let _ = write!(conf, " ({}; {next})", e.describe());
+                }
                 let _ = writeln!(
                     s,
                     "  stack axis ({src}) ({:.4}, {:.4}, {:.4}){conf}",

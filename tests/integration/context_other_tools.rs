@@ -289,3 +289,101 @@ fn phantoms_of_other_tools_caps_at_cut_ends_and_nowhere_else() {
         assert_caps(name, &ctx, t.caps.as_deref().unwrap_or(&[]));
     }
 }
+
+/// Angle (degrees) between an axis line and a direction.
+fn off_deg(a: [f32; 3], t: [f32; 3]) -> f64 {
+    let cos = (0..3)
+        .map(|k| f64::from(a[k]) * f64::from(t[k]))
+        .sum::<f64>()
+        .abs();
+    cos.min(1.0).acos().to_degrees()
+}
+
+/// The stack axis of `mesh` turned by each pose: `Some(degrees off the turned z)` or `None`
+/// when too weak.
+fn axis_errors(mesh: &Mesh, poses: &[[[f64; 3]; 3]]) -> Vec<Option<f64>> {
+    poses
+        .iter()
+        .map(|&r| {
+            let ctx = analyse(&rotated(mesh, r), &Default::default());
+            match ctx.axis {
+                Some(a) => Some(off_deg(a, turn(r, Z))),
+                None => {
+                    assert_eq!(ctx.axis_source, AxisSource::TooWeak);
+                    None
+                }
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn weak_axes_from_one_small_flat_area_in_eight_random_poses() {
+    // Paper 004 Table 5's protocol: spheres from distance fields (nothing flat) with 1/8 and
+    // 1/4 of the top slice cut off flat; the paper estimates them within 1.6 degrees. Before
+    // the second look, 1/8 was too weak: its border faces, flat but next to the cut's rim,
+    // failed the flat-vertex test (0.11 % of the area left of 0.49 %).
+    let mut poses = vec![[[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]];
+    poses.extend(rotations(8, 63));
+    for name in ["sphere-cut-eighth", "sphere-cut-quarter"] {
+        let mesh = read(&phantoms().join(format!("{name}.ply")));
+        let errors = axis_errors(&mesh, &poses);
+        assert!(
+            errors.iter().all(|e| e.is_some_and(|d| d <= 1.6)),
+            "{name}: {errors:?}"
+        );
+    }
+    let ctx = analyse(
+        &read(&phantoms().join("sphere-cut-eighth.ply")),
+        &Default::default(),
+    );
+    let summary = destair::report::inspect::context_summary(&ctx, 0);
+    assert_eq!(
+        summary.axis_evidence,
+        Some(destair::analysis::AxisEvidence::SmallFlatArea)
+    );
+    assert_eq!(summary.axis_source, "estimated");
+}
+
+#[test]
+fn never_a_wrong_axis_where_the_evidence_is_weak() {
+    // Too weak or right (within 2 degrees), in any pose: 1/16 of a slice cut flat (the paper
+    // fails there too, 10 degrees off); removals that slope down to the slice below (no flat
+    // area at all); binary surfaces smoothed until their terraces are rounded off, which keep
+    // planar oblique facets of 0.3-1 % of their area: VTK's Laplace on a blob (one facet 71
+    // degrees off z, alone in its direction, told from a cut only by its bent normals) and
+    // destair's on the neck tumour of the corpus (facets in mirror pairs 34-48 degrees off z).
+    let poses = rotations(8, 67);
+    let mut meshes: Vec<(String, Mesh)> = [
+        "sphere-cut-sixteenth",
+        "sphere-eighth",
+        "sphere-quarter",
+        "blob-s4-l80",
+    ]
+    .iter()
+    .map(|n| (n.to_string(), read(&phantoms().join(format!("{n}.ply")))))
+    .collect();
+    if let Some(dir) = corpus() {
+        let tumour = read(&dir.join("neck/tumor.ply"));
+        let t = Topology::build(&tumour);
+        for iterations in [10, 20, 50] {
+            let w = destair::weights::VertexWeights::uniform(tumour.n_vertices());
+            let method = destair::smooth::Method::Laplace { lambda: 0.5 };
+            let fixed = destair::smooth::boundary_vertices(&t);
+            let (p, _) = destair::smooth::smooth(&tumour, &t, &method, iterations, &w, &fixed);
+            let mut m = tumour.clone();
+            m.positions_mut().copy_from_slice(&p);
+            meshes.push((
+                format!("neck tumour after {iterations} Laplace iterations"),
+                m,
+            ));
+        }
+    }
+    for (name, mesh) in &meshes {
+        let errors = axis_errors(mesh, &poses);
+        assert!(
+            errors.iter().all(|e| e.is_none_or(|d| d <= 2.0)),
+            "{name}: {errors:?}"
+        );
+    }
+}
