@@ -28,7 +28,7 @@
 //! of that size (a VTK-smoothed neck tumour: 0.5-1.0 % of its area, in mirror pairs), so such
 //! an axis counts only when it has at least twice the support of any other direction, one
 //! connected flat area holds the minimum share on its own, and that area is flat (its normals
-//! spread by at most 0.25 degrees; smoothed facets by 0.6-2); otherwise the answer is too weak.
+//! spread by at most 0.25 degrees; smoothed facets by 0.6-2.3); otherwise the answer is too weak.
 
 use crate::mesh::geometry::triangle_area_vector;
 use crate::mesh::{Mesh, Topology};
@@ -212,8 +212,8 @@ pub fn stack_axis_with(turns: &TurnLimits, params: &StackAxisParams) -> StackAxi
 const SMALL_AREA_LEAD: f64 = 2.0;
 
 /// ...and when its normals spread by at most this much (degrees, root mean square): a cut is
-/// flat to the bit, while the planar facets smoothing leaves are bent (0.65-2 degrees measured
-/// on blobs after 30-80 VTK Laplace iterations).
+/// flat to the bit, while the planar facets smoothing leaves are bent (0.58-2.3 degrees measured
+/// on blobs and the corpus tumour after 10-80 Laplace iterations).
 const SMALL_AREA_SPREAD_DEG: f64 = 0.25;
 
 /// The largest edge-connected set of admitted faces whose normals lie within a given angle of
