@@ -30,6 +30,7 @@
 //! connected flat area holds the minimum share on its own, and that area is flat (its normals
 //! spread by at most 0.25 degrees; smoothed facets by 0.6-2.3); otherwise the answer is too weak.
 
+use crate::mesh::face_neighbours::edge_neighbours;
 use crate::mesh::geometry::triangle_area_vector;
 use crate::mesh::{Mesh, Topology};
 use crate::metrics::normal_curvature::TurnLimits;
@@ -158,10 +159,19 @@ pub fn stack_axis_with(turns: &TurnLimits, params: &StackAxisParams) -> StackAxi
     let flat = turns.within(params.flat_deg, params.flat_deg_per_mm);
     let support = turns.within(params.support_flat_deg, f32::INFINITY);
     let all_flat = |flags: &[bool], t: [u32; 3]| t.iter().all(|&v| flags[v as usize]);
+    // Shares are of the whole surface, so a mesh with little flat area gives little evidence.
+    let mesh = turns.mesh();
+    let total_area = deterministic_sum(mesh.n_triangles(), |f| {
+        let v = triangle_area_vector(mesh, mesh.triangles()[f]);
+        0.5 * (v.iter().map(|&x| (x as f64).powi(2)).sum::<f64>()).sqrt()
+    });
+    if total_area <= 0.0 || !total_area.is_finite() {
+        return StackAxis::TooWeak { best_share: 0.0 };
+    }
     let first = estimate(
         turns,
-        &|_, t| all_flat(&flat, t),
-        &|_, t| all_flat(&support, t),
+        (&|_, t| all_flat(&flat, t), &|_, t| all_flat(&support, t)),
+        total_area,
         params,
     );
     let first_share = match first {
@@ -171,12 +181,17 @@ pub fn stack_axis_with(turns: &TurnLimits, params: &StackAxisParams) -> StackAxi
     // The second look: faces flat by their vertices or lying in one plane with two of their
     // edge neighbours (the border faces of a small flat area, which the vertex test misses).
     let coplanar = coplanar_faces(turns, params.support_flat_deg, 2);
-    let tris = turns.mesh().triangles();
+    let tris = mesh.triangles();
     let small: Vec<bool> = (0..tris.len())
         .into_par_iter()
         .map(|f| coplanar[f] || all_flat(&support, tris[f]))
         .collect();
-    let second = estimate(turns, &|f, _| small[f], &|f, _| small[f], params);
+    let second = estimate(
+        turns,
+        (&|f, _| small[f], &|f, _| small[f]),
+        total_area,
+        params,
+    );
     let StackAxis::Found {
         axis,
         confidence,
@@ -185,9 +200,11 @@ pub fn stack_axis_with(turns: &TurnLimits, params: &StackAxisParams) -> StackAxi
         ..
     } = second
     else {
-        return too_weak(first_share);
+        return StackAxis::TooWeak {
+            best_share: first_share,
+        };
     };
-    let area = largest_flat_area(turns, &small, axis, params.support_deg);
+    let area = largest_flat_area(turns, &small, axis, (params.support_deg, total_area));
     // Alone in its direction, one connected area rather than scattered facets, and flat
     // rather than a facet smoothing has bent.
     if confidence < SMALL_AREA_LEAD * runner_up
@@ -228,7 +245,7 @@ fn largest_flat_area(
     turns: &TurnLimits,
     admitted: &[bool],
     axis: [f64; 3],
-    within_deg: f64,
+    (within_deg, total_area): (f64, f64),
 ) -> FlatArea {
     let mesh = turns.mesh();
     let topology = turns.topology();
@@ -254,7 +271,7 @@ fn largest_flat_area(
     };
     let mut seen = vec![false; tris.len()];
     let mut best: (f64, Vec<usize>) = (0.0, Vec::new());
-    let mut stack = Vec::new();
+    let (mut stack, mut neighbours) = (Vec::new(), Vec::new());
     for start in 0..tris.len() {
         if !member[start] || seen[start] {
             continue;
@@ -264,14 +281,12 @@ fn largest_flat_area(
         let mut faces = Vec::new();
         while let Some(f) = stack.pop() {
             faces.push(f);
-            for &v in &tris[f] {
-                for &g in topology.vertex_faces(v as usize) {
-                    let g = g as usize;
-                    let shares_edge = tris[g].iter().filter(|w| tris[f].contains(w)).count() == 2;
-                    if member[g] && !seen[g] && shares_edge {
-                        seen[g] = true;
-                        stack.push(g);
-                    }
+            edge_neighbours(mesh, topology, f as u32, &mut neighbours);
+            for &g in &neighbours {
+                let g = g as usize;
+                if member[g] && !seen[g] {
+                    seen[g] = true;
+                    stack.push(g);
                 }
             }
         }
@@ -280,7 +295,6 @@ fn largest_flat_area(
             best = (sum, faces);
         }
     }
-    let total = deterministic_sum(tris.len(), area);
     let (region_area, faces) = best;
     let mean = faces.iter().fold([0.0; 3], |m, &f| {
         let (a, n) = (area(f), aligned(f));
@@ -297,11 +311,7 @@ fn largest_flat_area(
         _ => 0.0,
     };
     FlatArea {
-        share: if total > 0.0 {
-            region_area / total
-        } else {
-            0.0
-        },
+        share: region_area / total_area,
         spread_deg,
     }
 }
@@ -309,31 +319,21 @@ fn largest_flat_area(
 /// Per face: whether its normal lies within `max_deg` of the normals of at least `min_agree`
 /// of its edge neighbours (faces without area never agree).
 fn coplanar_faces(turns: &TurnLimits, max_deg: f32, min_agree: usize) -> Vec<bool> {
-    let mesh = turns.mesh();
-    let topology = turns.topology();
+    let (mesh, topology) = (turns.mesh(), turns.topology());
     let normals = turns.face_normals();
     let cos_max = f64::from(max_deg).to_radians().cos();
-    let tris = mesh.triangles();
-    (0..tris.len())
+    (0..mesh.n_triangles() as u32)
         .into_par_iter()
-        .map(|f| {
-            let n = normals[f];
+        .map_init(Vec::new, |neighbours, f| {
+            let n = normals[f as usize];
             if n == [0.0; 3] {
                 return false;
             }
-            let t = tris[f];
-            let mut agree = 0;
-            for k in 0..3 {
-                let (a, b) = (t[k], t[(k + 1) % 3]);
-                let shares_edge = |g: u32| g as usize != f && tris[g as usize].contains(&b);
-                if topology
-                    .vertex_faces(a as usize)
-                    .iter()
-                    .any(|&g| shares_edge(g) && dot32(n, normals[g as usize]) >= cos_max)
-                {
-                    agree += 1;
-                }
-            }
+            edge_neighbours(mesh, topology, f, neighbours);
+            let agree = neighbours
+                .iter()
+                .filter(|&&g| dot32(n, normals[g as usize]) >= cos_max)
+                .count();
             agree >= min_agree
         })
         .collect()
@@ -343,59 +343,57 @@ fn dot32(a: [f32; 3], b: [f32; 3]) -> f64 {
     (0..3).map(|k| f64::from(a[k]) * f64::from(b[k])).sum()
 }
 
+/// A face test, given the face's index and corners.
+type FaceTest<'a> = &'a (dyn Fn(usize, [u32; 3]) -> bool + Sync);
+
 /// One look: the clusters of the normals of the faces `candidate` admits give the candidate
-/// axes; the faces `support` admits give each its share and refine the winner.
+/// axes; the faces `support` admits give each its share of `total_area` (mm^2) and refine the
+/// winner.
 fn estimate(
     turns: &TurnLimits,
-    candidate: &(dyn Fn(usize, [u32; 3]) -> bool + Sync),
-    support: &(dyn Fn(usize, [u32; 3]) -> bool + Sync),
+    (candidate, support): (FaceTest, FaceTest),
+    total_area: f64,
     params: &StackAxisParams,
 ) -> StackAxis {
     let mesh = turns.mesh();
     // Evidence is the area of flat faces, not a face count: slivers (which marching cubes makes
     // wherever the surface passes close to a grid point) then cannot outvote real terraces.
-    // Unit normal and area of every face whose corners all pass `flat`, in face order: fixed
-    // blocks of faces in parallel, each a plain loop, joined in block order.
-    let unit_normals =
-        |admit: &(dyn Fn(usize, [u32; 3]) -> bool + Sync)| -> (Vec<[f64; 3]>, Vec<f64>) {
-            const BLOCK: usize = 1 << 16;
-            let blocks: Vec<(Vec<[f64; 3]>, Vec<f64>)> = mesh
-                .triangles()
-                .par_chunks(BLOCK)
-                .enumerate()
-                .map(|(b, block)| {
-                    let mut out = (Vec::new(), Vec::new());
-                    for (i, &t) in block.iter().enumerate() {
-                        if !admit(b * BLOCK + i, t) {
-                            continue;
-                        }
-                        let v = triangle_area_vector(mesh, t).map(f64::from);
-                        let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-                        if len > 0.0 && len.is_finite() {
-                            out.0.push(v.map(|x| x / len));
-                            out.1.push(0.5 * len);
-                        }
+    // Unit normal and area of every face `admit` admits, in face order: fixed blocks of faces
+    // in parallel, each a plain loop, joined in block order.
+    let unit_normals = |admit: FaceTest| -> (Vec<[f64; 3]>, Vec<f64>) {
+        const BLOCK: usize = 1 << 16;
+        let blocks: Vec<(Vec<[f64; 3]>, Vec<f64>)> = mesh
+            .triangles()
+            .par_chunks(BLOCK)
+            .enumerate()
+            .map(|(b, block)| {
+                let mut out = (Vec::new(), Vec::new());
+                for (i, &t) in block.iter().enumerate() {
+                    if !admit(b * BLOCK + i, t) {
+                        continue;
                     }
-                    out
-                })
-                .collect();
-            let n = blocks.iter().map(|b| b.0.len()).sum();
-            let mut all = (Vec::with_capacity(n), Vec::with_capacity(n));
-            for (normals, areas) in blocks {
-                all.0.extend_from_slice(&normals);
-                all.1.extend_from_slice(&areas);
-            }
-            all
-        };
+                    let v = triangle_area_vector(mesh, t).map(f64::from);
+                    let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+                    if len > 0.0 && len.is_finite() {
+                        out.0.push(v.map(|x| x / len));
+                        out.1.push(0.5 * len);
+                    }
+                }
+                out
+            })
+            .collect();
+        let n = blocks.iter().map(|b| b.0.len()).sum();
+        let mut all = (Vec::with_capacity(n), Vec::with_capacity(n));
+        for (normals, areas) in blocks {
+            all.0.extend_from_slice(&normals);
+            all.1.extend_from_slice(&areas);
+        }
+        all
+    };
     let (normals, areas) = unit_normals(candidate);
     let (support_normals, support_areas) = unit_normals(support);
-    // Shares are of the whole surface, so a mesh with little flat area gives little evidence.
-    let total_area = deterministic_sum(mesh.n_triangles(), |f| {
-        let v = triangle_area_vector(mesh, mesh.triangles()[f]);
-        0.5 * (v.iter().map(|&x| (x as f64).powi(2)).sum::<f64>()).sqrt()
-    });
-    if normals.is_empty() || total_area <= 0.0 {
-        return too_weak(0.0);
+    if normals.is_empty() {
+        return StackAxis::TooWeak { best_share: 0.0 };
     }
     // Bins of half the radius over [-1, 1]^3; each normal counts at n and -n.
     let bin = params.radius / 2.0;
@@ -520,7 +518,7 @@ fn estimate(
     };
     let shares: Vec<([f64; 3], f64)> = candidates.iter().map(|&c| (c, support(c))).collect();
     let Some(&(best, best_share)) = shares.iter().max_by(|x, y| x.1.total_cmp(&y.1)) else {
-        return too_weak(0.0);
+        return StackAxis::TooWeak { best_share: 0.0 };
     };
     // Refine from the supporting faces (area-weighted, sign-aligned mean), a few rounds.
     let mut axis = best;
@@ -546,7 +544,7 @@ fn estimate(
         .filter(|&&n| dot(n, axis).abs() >= cos_support)
         .count();
     if share < params.min_support_share || count < params.min_support_faces {
-        return too_weak(share);
+        return StackAxis::TooWeak { best_share: share };
     }
     // The best other direction (a candidate clearly apart from the axis).
     let cos_apart = RUNNER_UP_APART_DEG.to_radians().cos();
@@ -566,7 +564,3 @@ fn estimate(
 
 /// Candidates at least this far from the winner count as other directions (degrees).
 const RUNNER_UP_APART_DEG: f64 = 10.0;
-
-fn too_weak(best_share: f64) -> StackAxis {
-    StackAxis::TooWeak { best_share }
-}
