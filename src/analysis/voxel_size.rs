@@ -11,7 +11,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 /// Share of non-zero edge offsets the h/2 and h clusters must explain for a grid to be accepted.
-const MIN_EXPLAINED: f64 = 0.99;
+pub(super) const MIN_EXPLAINED: f64 = 0.99;
 /// Relative tolerance on the h : h/2 ratio of 2.
 const RATIO_TOLERANCE: f64 = 0.01;
 
@@ -75,6 +75,12 @@ impl VoxelSizeEstimate {
     }
 }
 
+/// Offsets (mm) below a few ulps of the largest coordinate magnitude `max_abs` (mm) are float
+/// noise around 0.
+pub fn zero_tolerance(max_abs: f64) -> f64 {
+    8.0 * f32::EPSILON as f64 * max_abs.max(1e-6)
+}
+
 /// Distinct offsets counted per axis beyond which the axis is sorted instead (a mesh off any
 /// grid has about as many distinct offsets as edges).
 const MAX_DISTINCT: usize = 1 << 16;
@@ -102,9 +108,7 @@ pub fn voxel_size(mesh: &Mesh, topology: &Topology) -> VoxelSizeEstimate {
             || [0.0f32; 3],
             |a, b| std::array::from_fn(|k| a[k].max(b[k])),
         );
-    // Offsets below a few ulps of the largest coordinate are float noise around 0.
-    let zero_tol: [f64; 3] =
-        std::array::from_fn(|k| 8.0 * f32::EPSILON as f64 * (max_abs[k] as f64).max(1e-6));
+    let zero_tol: [f64; 3] = std::array::from_fn(|k| zero_tolerance(max_abs[k] as f64));
     let offset =
         |[a, b]: [u32; 2], k: usize| (p[a as usize][k] as f64 - p[b as usize][k] as f64).abs();
     let counted = count_offsets(topology, offset, zero_tol);

@@ -96,9 +96,12 @@ pub struct ContextSummary {
     /// Support share of the best other direction (at least 10 degrees from the estimate): how
     /// clearly the estimate stands out.
     pub axis_runner_up: Option<f64>,
-    /// The voxel size (mm along x, y, z) of the axis-aligned grid the mesh lies on, known or
-    /// reconstructed: one value per axis, or the two it may be (h/2 and h steps not both seen).
+    /// The voxel size (mm along x, y, z, or along `grid_axes`) of the grid the mesh lies on,
+    /// known or reconstructed: one value per axis, or the two it may be (h/2 and h steps not
+    /// both seen).
     pub voxel_mm: Option<[Vec<f64>; 3]>,
+    /// The grid's unit axes when it is turned off x, y, z (found from the mesh's flat faces).
+    pub grid_axes: Option<[[f64; 3]; 3]>,
     /// The Gauss-map estimate, when it found an axis (whether or not it was used).
     pub estimated_axis: Option<[f64; 3]>,
     /// Angle (degrees) between the axis used and the Gauss-map estimate, when the grid gave
@@ -134,6 +137,7 @@ pub const AXIS_DISAGREEMENT_DEG: f64 = 5.0;
 /// Summarises a context analysis.
 pub fn context_summary(ctx: &Context, n_vertices: usize) -> ContextSummary {
     use crate::analysis::StackAxis;
+    use crate::weights::AxisSource;
     let axis_confidence = match ctx.estimated_axis {
         Some(StackAxis::Found { confidence, .. }) => Some(confidence),
         Some(StackAxis::TooWeak { best_share }) => Some(best_share),
@@ -164,7 +168,10 @@ pub fn context_summary(ctx: &Context, n_vertices: usize) -> ContextSummary {
             ));
         }
     }
-    if let (Some(off), Some(a)) = (ctx.estimate_off_deg, ctx.axis) {
+    // On an isotropic grid the estimate only picks an axis: no disagreement to warn about.
+    if let (Some(off), Some(a), AxisSource::Grid) =
+        (ctx.estimate_off_deg, ctx.axis, ctx.axis_source)
+    {
         if off > AXIS_DISAGREEMENT_DEG {
             warnings.push(format!(
                 "the voxel grid's slice axis ({:.3}, {:.3}, {:.3}) is used, but the flat faces point {off:.1} degrees away from it (the Gauss-map estimate): the surface may have been edited, or its largest flat parts are not slices",
@@ -189,6 +196,7 @@ pub fn context_summary(ctx: &Context, n_vertices: usize) -> ContextSummary {
         voxel_mm: ctx
             .grid_mm
             .map(|g| g.map(|(lo, hi)| if lo == hi { vec![lo] } else { vec![lo, hi] })),
+        grid_axes: ctx.grid_axes,
         estimated_axis: ctx.estimated_axis.and_then(|e| e.axis()),
         estimate_off_deg: ctx.estimate_off_deg,
         n_staircase_vertices,
@@ -241,6 +249,16 @@ impl ContextSummary {
                     "  stack axis ({src}) ({:.4}, {:.4}, {:.4}){conf}",
                     a[0], a[1], a[2]
                 );
+                if let (Some(axes), Some(mm)) = (self.grid_axes, &self.voxel_mm) {
+                    let along: Vec<String> = (0..3)
+                        .map(|k| {
+                            let h: Vec<String> = mm[k].iter().map(|h| format!("{h:.4}")).collect();
+                            let [x, y, z] = axes[k];
+                            format!("{} mm along ({x:.4}, {y:.4}, {z:.4})", h.join(" or "))
+                        })
+                        .collect();
+                    let _ = writeln!(s, "  voxel grid turned off the axes: {}", along.join(", "));
+                }
             }
             (None, "too_weak") => {
                 let _ = writeln!(s, "  stack axis: no staircases found (best direction has {:.2} % of the area; too weak to call an axis)", 100.0 * self.axis_confidence.unwrap_or(0.0));

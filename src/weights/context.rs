@@ -7,8 +7,10 @@ use super::{
     distance_weights, Combine, DistanceScaling, StaircaseParams, StaircaseWeights, VertexWeights,
 };
 use crate::analysis::{
-    stack_axis_with, CapCandidates, CapDetection, CapParams, CapSearch, StackAxis, StackAxisParams,
+    stack_axis_with, turned_grid, CapCandidates, CapDetection, CapParams, CapSearch, Grid,
+    StackAxis, StackAxisParams,
 };
+use crate::mesh::geometry::dot64;
 use crate::mesh::order::{is_scattered, scanline, with_working_faces, Renumbering};
 use crate::mesh::{Mesh, Topology};
 use crate::metrics::normal_curvature::TurnLimits;
@@ -122,9 +124,12 @@ pub struct Context {
     pub estimated_axis: Option<StackAxis>,
     /// Where the axis used came from.
     pub axis_source: AxisSource,
-    /// Bounds (smallest, largest; mm) on the voxel size along x, y, z: known, or reconstructed
-    /// from the mesh; None when the mesh lies on no axis-aligned grid.
+    /// Bounds (smallest, largest; mm) on the voxel size along x, y, z (or along `grid_axes`):
+    /// known, or reconstructed from the mesh; None when the mesh lies on no grid found.
     pub grid_mm: Option<[(f64, f64); 3]>,
+    /// The unit axes (rows) of the grid the mesh lies on when they are not x, y, z: a grid
+    /// turned off the axes, found from the mesh's flat faces.
+    pub grid_axes: Option<[[f64; 3]; 3]>,
     /// Angle (degrees) between the axis used and the Gauss-map estimate, when the axis came
     /// from the grid and the estimate found one.
     pub estimate_off_deg: Option<f64>,
@@ -240,15 +245,15 @@ type Staircases = (
 );
 
 /// The stack axis (from the grid, estimated, or given and normalised; none without staircase
-/// weighting) and the staircase weights along it. `grid` bounds the voxel size (mm per axis)
-/// when the mesh lies on an axis-aligned grid.
+/// weighting) and the staircase weights along it. `grid` is the voxel grid the mesh lies on,
+/// when known or found.
 fn staircases(
     mesh: &Mesh,
     topology: &Topology,
     turns: &TurnLimits,
     params: &ContextParams,
     axis_params: &StackAxisParams,
-    grid: Option<[(f64, f64); 3]>,
+    grid: Option<Grid>,
 ) -> Staircases {
     let (estimated_axis, source, axis) = if !params.staircase {
         (None, AxisSource::Off, None)
@@ -278,24 +283,20 @@ fn staircases(
 
 /// The stack axis a grid and an estimate give together: the grid's coarse axis when it has
 /// one; on an isotropic grid the grid axis nearest to the estimate; off any grid the estimate.
-fn axis_on_grid(
-    estimate: Option<[f64; 3]>,
-    grid: Option<[(f64, f64); 3]>,
-) -> (AxisSource, Option<[f32; 3]>) {
-    let unit = |k: usize| {
-        let mut a = [0.0f32; 3];
-        a[k] = 1.0;
-        a
-    };
-    if let Some(k) = grid.and_then(crate::analysis::coarse_axis) {
-        return (AxisSource::Grid, Some(unit(k)));
+fn axis_on_grid(estimate: Option<[f64; 3]>, grid: Option<Grid>) -> (AxisSource, Option<[f32; 3]>) {
+    let along = |g: Grid, k: usize| g.axes[k].map(|x| x as f32);
+    if let Some(g) = grid {
+        if let Some(k) = crate::analysis::coarse_axis(g.spacing_mm) {
+            return (AxisSource::Grid, Some(along(g, k)));
+        }
     }
     match (grid, estimate) {
-        (Some(_), Some(e)) => {
+        (Some(g), Some(e)) => {
+            let cos = |k: usize| dot64(g.axes[k], e).abs();
             let k = (0..3)
-                .max_by(|&i, &j| e[i].abs().total_cmp(&e[j].abs()))
+                .max_by(|&i, &j| cos(i).total_cmp(&cos(j)))
                 .unwrap_or(2);
-            (AxisSource::EstimateOnGrid, Some(unit(k)))
+            (AxisSource::EstimateOnGrid, Some(along(g, k)))
         }
         (None, Some(e)) => (AxisSource::Estimated, Some(e.map(|x| x as f32))),
         (_, None) => (AxisSource::TooWeak, None),
@@ -315,19 +316,28 @@ pub fn context_in_mesh_order(
         (axis_params.support_flat_deg, f32::INFINITY),
     ];
     let estimates_axis = params.staircase && params.axis == AxisChoice::Auto;
-    // The grid: known, or reconstructed where the mesh lies on an axis-aligned one.
-    let grid: Option<[(f64, f64); 3]> = match params.grid_mm {
+    let caps_only_smoothed = params.caps == CapPolicy::Smooth && !params.find_smoothed_caps;
+    // The grid: known, reconstructed where the mesh lies on an axis-aligned one, or found
+    // turned off the axes (for the stack axis and the caps' slices: not looked for when
+    // neither is).
+    let grid: Option<Grid> = match params.grid_mm {
         Some(g) => Some(g.map(|h| (f64::from(h), f64::from(h)))),
         None => crate::analysis::voxel_size(mesh, topology).spacing_bounds(),
-    };
+    }
+    .map(Grid::along_mesh_axes)
+    .or_else(|| {
+        (params.staircase || !caps_only_smoothed)
+            .then(|| turned_grid(mesh, topology))
+            .flatten()
+    });
     let params = &ContextParams {
         cap_params: CapParams {
-            grid_mm: grid.map(|g| g.map(|(_, hi)| hi as f32)),
+            grid,
             ..params.cap_params
         },
         ..params.clone()
     };
-    if params.caps == CapPolicy::Smooth && !params.find_smoothed_caps {
+    if caps_only_smoothed {
         // The staircases alone (caps are not looked for).
         let stairs = if params.staircase {
             let mut turns = TurnLimits::new(mesh, topology);
@@ -396,7 +406,7 @@ fn weighted(
     references: &[&TriangleBvh],
     (estimated_axis, axis_source, axis, staircase): Staircases,
     caps: CapDetection,
-    grid_mm: Option<[(f64, f64); 3]>,
+    grid: Option<Grid>,
 ) -> Context {
     let n = mesh.n_vertices();
     let reference_distance_mm =
@@ -438,7 +448,8 @@ fn weighted(
     Context {
         estimated_axis,
         axis_source,
-        grid_mm,
+        grid_mm: grid.map(|g| g.spacing_mm),
+        grid_axes: grid.filter(Grid::is_turned).map(|g| g.axes),
         estimate_off_deg,
         axis,
         staircase,

@@ -23,7 +23,7 @@
 mod region;
 
 use crate::mesh::face_neighbours::FaceNeighbours;
-use crate::mesh::geometry::triangle_area_vector;
+use crate::mesh::geometry::{dot64, triangle_area_vector};
 use crate::mesh::umbrella::{padded, umbrella_pass, unpadded, written_before_read, NeighbourLists};
 use crate::mesh::{Mesh, Topology};
 use crate::metrics::normal_curvature::TurnLimits;
@@ -86,9 +86,9 @@ pub struct CapParams {
     /// Largest cross-section at half the section depth, as a multiple of the region's area
     /// (the rim's chamfers or rounding lie between).
     pub max_section_span: f32,
-    /// The voxel size (mm along x, y, z) of the grid the mesh was made on, when known.
+    /// The voxel grid the mesh was made on, when known or found.
     #[serde(skip)]
-    pub grid_mm: Option<[f32; 3]>,
+    pub grid: Option<crate::analysis::Grid>,
 }
 
 impl Default for CapParams {
@@ -112,7 +112,7 @@ impl Default for CapParams {
             runs_on_slices: 2.0,
             max_section_growth: 1.3,
             max_section_span: 2.0,
-            grid_mm: None,
+            grid: None,
         }
     }
 }
@@ -515,29 +515,42 @@ fn caps_of(
 /// does not. Infinite where there is none.
 fn terrace_gaps(mesh: &Mesh, regions: &[Vec<u32>]) -> Vec<f32> {
     let (tris, p) = (mesh.triangles(), mesh.positions());
-    // Each region's normal and the level of its plane along it (the mean of its first corners).
-    let planes: Vec<([f32; 3], f64)> = regions
+    // Each region's normal, a point of its plane (the mean of its faces' first corners) and
+    // its area.
+    let planes: Vec<([f32; 3], [f64; 3], f64)> = regions
         .par_iter()
         .map(|faces| {
-            let n = region_normal(mesh, faces);
-            let level = faces
-                .iter()
-                .map(|&f| {
-                    let q = p[tris[f as usize][0] as usize];
-                    (0..3).map(|k| f64::from(q[k] * n[k])).sum::<f64>()
-                })
-                .sum::<f64>()
-                / faces.len().max(1) as f64;
-            (n, level)
+            let mut point = [0.0f64; 3];
+            for &f in faces {
+                let q = p[tris[f as usize][0] as usize];
+                (0..3).for_each(|k| point[k] += f64::from(q[k]));
+            }
+            let n_faces = faces.len().max(1) as f64;
+            let point = point.map(|x| x / n_faces);
+            (region_normal(mesh, faces), point, region_area(mesh, faces))
         })
         .collect();
     let cos_parallel = 2.0f32.to_radians().cos();
     planes
         .par_iter()
-        .map(|&(n, _)| {
-            let mut levels: Vec<f64> = (planes.iter())
-                .filter(|&&(m, _)| dot(n, m) >= cos_parallel)
-                .map(|&(_, level)| level)
+        .map(|&(n, _, _)| {
+            let parallel: Vec<&([f32; 3], [f64; 3], f64)> = (planes.iter())
+                .filter(|&&(m, _, _)| dot(n, m) >= cos_parallel)
+                .collect();
+            // The levels along the regions' common normal (their area-weighted mean): one
+            // region's own normal, off by a tenth of a degree, would shift planes 100 mm
+            // apart by 0.2 mm. Differences of levels do not depend on where the mesh lies.
+            let mut common = [0.0f64; 3];
+            for &&(m, _, area) in &parallel {
+                (0..3).for_each(|k| common[k] += area * f64::from(m[k]));
+            }
+            let len = dot64(common, common).sqrt();
+            if !(len > 0.0 && len.is_finite()) {
+                return f32::INFINITY;
+            }
+            let common = common.map(|x| x / len);
+            let mut levels: Vec<f64> = (parallel.iter())
+                .map(|&&(_, point, _)| dot64(point, common))
                 .collect();
             levels.sort_unstable_by(f64::total_cmp);
             // Gaps between distinct planes (regions of one terrace split in two are one).

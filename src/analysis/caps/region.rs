@@ -187,8 +187,8 @@ pub(super) fn examine_region(
     // The slices along the normal: the grid's spacing, or (grid unknown) the gap to the next
     // terrace facing the same way when it is within the region's width (a tube's far end
     // is no terrace).
-    let slice = match params.grid_mm {
-        Some(g) => (0..3).map(|k| normal[k].abs() * g[k]).sum::<f32>(),
+    let slice = match params.grid {
+        Some(g) => g.spacing_along(normal),
         None if terrace_gap <= width => terrace_gap,
         None => 0.0,
     };
