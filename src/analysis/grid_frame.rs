@@ -5,11 +5,11 @@
 //! sees a grid only where the mesh lies on an axis-aligned one. On a turned grid the flat faces
 //! still face its axes exactly (a plane of marching-cubes faces on a grid face has the grid
 //! axis as its normal to float precision), so the axes are read from them: one axis from the
-//! direction that carries most face area, the second from the faces perpendicular to it,
+//! directions that carry most face area, the second from the faces perpendicular to it,
 //! whose directions repeat every 90 degrees around it on a grid. The mesh seen in that frame
 //! then has to pass the same offset test as an axis-aligned one; a frame taken from a diagonal
 //! facet, or a mesh on no grid, fails it (a sample of edges decides most of them), and the
-//! next strongest directions are tried.
+//! next candidate is tried.
 //!
 //! Without this a tube along the slice axis, turned, takes its in-plane pixel walls for the
 //! stack axis (the corpus trachea: 90 degrees off).
@@ -60,8 +60,9 @@ impl Grid {
 const FACING_DEG: f64 = 0.5;
 /// Width of a histogram bin of directions around the first axis (degrees, over 0-90).
 const BIN_DEG: f64 = 0.1;
-/// First axes tried (the directions with most face area), and second axes per first axis.
-const FIRST_AXES_TRIED: usize = 3;
+/// Directions with most face area taken as candidate axes (with their pairs' cross products),
+/// and second axes tried per first axis.
+const PEAKS_TAKEN: usize = 8;
 const SECOND_AXES_TRIED: usize = 2;
 /// Peaks closer than this (degrees, modulo 90) are one direction.
 const PEAKS_APART_DEG: f64 = 5.0;
@@ -82,12 +83,27 @@ pub fn turned_grid(mesh: &Mesh, topology: &Topology) -> Option<Grid> {
         .reduce(|| 0.0, f64::max);
     let zero_tol = zero_tolerance(max_norm);
     let sample = sampled_edges(mesh, topology);
-    for first in faces.strongest() {
+    // A first axis must show grid steps in the sampled edges on its own before any frame
+    // around it is tried: most candidates fail there, for the price of one sort.
+    for first in faces.first_axes() {
         let a = faces.refined(first).unwrap_or(first);
+        let Some(along_a) = sampled_steps(&sample, a, zero_tol) else {
+            continue;
+        };
         for b in faces.around(a) {
             let axes = [a, b, cross64(a, b)];
-            if let Some(spacing_mm) = grid_along(mesh, topology, &sample, axes, zero_tol) {
-                return Some(Grid { axes, spacing_mm });
+            let Some(along_b) = sampled_steps(&sample, b, zero_tol) else {
+                continue;
+            };
+            let Some(along_c) = sampled_steps(&sample, axes[2], zero_tol) else {
+                continue;
+            };
+            let steps = [along_a, along_b, along_c];
+            if explains_every_edge(mesh, topology, axes, steps, zero_tol) {
+                return Some(Grid {
+                    axes,
+                    spacing_mm: steps.map(|s| s.bounds),
+                });
             }
         }
     }
@@ -125,10 +141,13 @@ impl SampledFaces {
         self.normals.iter().copied().zip(self.areas.iter().copied())
     }
 
-    /// Up to [`FIRST_AXES_TRIED`] unit directions (at least [`PEAKS_APART_DEG`] apart) that
-    /// carry the most face area, n and -n together, strongest first: cells of about 0.3 degrees
-    /// on the Gauss map, where the faces of a grid's walls fall into one cell each.
-    fn strongest(&self) -> Vec<[f64; 3]> {
+    /// Candidate first axes: the directions carrying most face area (cells of about 0.3
+    /// degrees on the Gauss map, n and -n together, refined), strongest first, then the cross
+    /// products of pairs of them. A grid axis is perpendicular to every face normal without a
+    /// component along it (terraces, walls and chamfers of the other two axes); on a vessel
+    /// crossing the slices at 45 degrees, or an isotropic sphere, diagonal facets carry more
+    /// area than any wall, and the axes are found only as such cross products.
+    fn first_axes(&self) -> Vec<[f64; 3]> {
         const CELLS_PER_UNIT: f64 = 200.0;
         let key = |n: [f64; 3]| -> Option<[i32; 3]> {
             // n and -n in one cell: the first non-zero component made positive.
@@ -148,20 +167,33 @@ impl SampledFaces {
             }
         }
         heaviest.sort_unstable_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
-        let mut out: Vec<[f64; 3]> = Vec::new();
         let cos_apart = PEAKS_APART_DEG.to_radians().cos();
+        let distinct =
+            |list: &[[f64; 3]], d: [f64; 3]| list.iter().all(|&o| dot64(o, d).abs() < cos_apart);
+        let mut peaks: Vec<[f64; 3]> = Vec::new();
         for (k, _) in heaviest {
             let Some(d) = unit(k.map(f64::from)) else {
                 continue;
             };
-            if out.iter().all(|&o| dot64(o, d).abs() < cos_apart) {
-                out.push(d);
-                if out.len() == FIRST_AXES_TRIED {
+            let d = self.refined(d).unwrap_or(d);
+            if distinct(&peaks, d) {
+                peaks.push(d);
+                if peaks.len() == PEAKS_TAKEN {
                     break;
                 }
             }
         }
-        out
+        let mut candidates = peaks.clone();
+        for (i, &p) in peaks.iter().enumerate() {
+            for &q in &peaks[i + 1..] {
+                if let Some(c) = unit(cross64(p, q)) {
+                    if distinct(&candidates, c) {
+                        candidates.push(c);
+                    }
+                }
+            }
+        }
+        candidates
     }
 
     /// The area-weighted mean of the normals facing the line of `a` (sign-aligned to `a`).
@@ -275,35 +307,48 @@ fn sampled_edges(mesh: &Mesh, topology: &Topology) -> Vec<[f64; 3]> {
         .collect()
 }
 
-/// The spacing bounds of the grid along `axes` (unit rows) the mesh lies on, or None: the
-/// sampled edge offsets first (a mesh off this grid fails there), then every edge.
-fn grid_along(
+/// The offsets (mm) a grid shows along one axis: h/2 and h, or one step that is h or h/2,
+/// with the spacing bounds they give.
+#[derive(Debug, Clone, Copy)]
+struct Steps {
+    offsets: [f64; 2],
+    bounds: (f64, f64),
+}
+
+/// The steps the sampled edge offsets (mm) show along the unit direction `axis`, or None when
+/// they are not a grid's.
+fn sampled_steps(sample: &[[f64; 3]], axis: [f64; 3], zero_tol: f64) -> Option<Steps> {
+    let mut offsets: Vec<f64> = sample
+        .iter()
+        .map(|&d| dot64(axis, d).abs())
+        .filter(|&d| d > zero_tol)
+        .collect();
+    offsets.sort_unstable_by(f64::total_cmp);
+    match axis_spacing(&offsets, zero_tol) {
+        AxisSpacing::Spacing { mm } => Some(Steps {
+            offsets: [mm / 2.0, mm],
+            bounds: (mm, mm),
+        }),
+        AxisSpacing::OneStep { mm } => Some(Steps {
+            offsets: [mm, mm],
+            bounds: (mm, 2.0 * mm),
+        }),
+        _ => None,
+    }
+}
+
+/// Whether the steps the sample showed along `axes` (unit rows) explain the offsets of every
+/// edge as [`voxel_size`](fn@super::voxel_size) demands (within the tolerance its clusters are
+/// drawn with).
+fn explains_every_edge(
     mesh: &Mesh,
     topology: &Topology,
-    sample: &[[f64; 3]],
     axes: [[f64; 3]; 3],
+    steps: [Steps; 3],
     zero_tol: f64,
-) -> Option<[(f64, f64); 3]> {
+) -> bool {
     let p = mesh.positions();
     let n = topology.n_vertices().min(p.len());
-    // Per axis, the offsets (mm) the sample shows: h/2 and h, or one step that is h or h/2.
-    let mut steps = [[0.0f64; 2]; 3];
-    let mut bounds = [(0.0, 0.0); 3];
-    for k in 0..3 {
-        let mut offsets: Vec<f64> = sample
-            .iter()
-            .map(|&d| dot64(axes[k], d).abs())
-            .filter(|&d| d > zero_tol)
-            .collect();
-        offsets.sort_unstable_by(f64::total_cmp);
-        (steps[k], bounds[k]) = match axis_spacing(&offsets, zero_tol) {
-            AxisSpacing::Spacing { mm } => ([mm / 2.0, mm], (mm, mm)),
-            AxisSpacing::OneStep { mm } => ([mm, mm], (mm, 2.0 * mm)),
-            _ => return None,
-        };
-    }
-    // Every edge: the share of non-zero offsets those steps explain, as the sample's clusters
-    // were drawn (within the same tolerance of each step).
     let near = |d: f64, step: f64| (d - step).abs() <= (4.0 * zero_tol).max(1e-4 * step);
     let counts = (0..n)
         .into_par_iter()
@@ -317,7 +362,7 @@ fn grid_along(
                     let d = dot64(axes[k], e).abs();
                     if d > zero_tol {
                         c[k][0] += 1;
-                        c[k][1] += usize::from(steps[k].iter().any(|&h| near(d, h)));
+                        c[k][1] += usize::from(steps[k].offsets.iter().any(|&h| near(d, h)));
                     }
                 }
             }
@@ -330,5 +375,4 @@ fn grid_along(
     counts
         .iter()
         .all(|&[total, explained]| explained as f64 >= MIN_EXPLAINED * total as f64)
-        .then_some(bounds)
 }

@@ -306,6 +306,7 @@ impl ContextArgs {
                 tau: self.tau,
                 tau_max_mm: self.tau_max,
                 beta_min: self.beta_min,
+                slice_step_change: None,
             },
             caps: match self.caps {
                 CapsArg::Preserve => CapPolicy::Preserve,

@@ -335,6 +335,7 @@ pub fn resolve(s: &Settings) -> Result<StructureSettings, String> {
         },
         tau_max_mm: positive("tau_max", s.tau_max)?.unwrap_or(defaults.tau_max_mm),
         beta_min: unit("beta_min", s.beta_min)?.unwrap_or(defaults.beta_min),
+        slice_step_change: None,
     };
     let params = MethodParams {
         lambda: s.lambda,

@@ -2,7 +2,7 @@
 //! preserved or smoothed, and distance weights from reference structures, combined into one
 //! weight per vertex (Moench 2010, 2012; Moench et al. 2010).
 
-use super::staircase::staircase_weights_with;
+use super::staircase::{slice_step_change, staircase_weights_with};
 use super::{
     distance_weights, Combine, DistanceScaling, StaircaseParams, StaircaseWeights, VertexWeights,
 };
@@ -303,6 +303,17 @@ fn axis_on_grid(estimate: Option<[f64; 3]>, grid: Option<Grid>) -> (AxisSource, 
     }
 }
 
+/// How many times its in-plane spacing a grid's slice spacing is at least (the smallest the
+/// spacing bounds allow), when it has a slice axis.
+fn slice_ratio(grid: Grid) -> Option<f64> {
+    let k = crate::analysis::coarse_axis(grid.spacing_mm)?;
+    let in_plane = (0..3)
+        .filter(|&j| j != k)
+        .map(|j| grid.spacing_mm[j].1)
+        .fold(0.0, f64::max);
+    (in_plane > 0.0).then(|| grid.spacing_mm[k].0 / in_plane)
+}
+
 /// [`context_weights`] in the mesh's own numbering, whatever it is.
 pub fn context_in_mesh_order(
     mesh: &Mesh,
@@ -330,10 +341,20 @@ pub fn context_in_mesh_order(
             .then(|| turned_grid(mesh, topology))
             .flatten()
     });
+    // Where the mesh itself lies on a grid with a slice axis (and the axis is the grid's), its
+    // steps make a known orientation change, which an automatic tau stays below.
+    let slice_step_change = match (params.grid_mm, params.axis, grid) {
+        (None, AxisChoice::Auto, Some(g)) => slice_ratio(g).map(slice_step_change),
+        _ => None,
+    };
     let params = &ContextParams {
         cap_params: CapParams {
             grid,
             ..params.cap_params
+        },
+        staircase_params: StaircaseParams {
+            slice_step_change,
+            ..params.staircase_params
         },
         ..params.clone()
     };

@@ -32,6 +32,7 @@ fn step_edges_are_staircases_and_weights_fall_off_with_surface_distance() {
         tau: Tau::Fixed(0.7),
         tau_max_mm: 10.0,
         beta_min: 0.0,
+        ..Default::default()
     };
     let s = staircase_weights(&m, &topo, [0.0, 0.0, 1.0], &params);
     // Vertices on both edges of the wall (x = 2 at z 0 and z 1) are staircase vertices.
@@ -169,4 +170,58 @@ fn geodesic_distance_matches_dijkstra_bit_for_bit() {
     assert!(geodesic_distance(&blob, &topology, &none, 3.0)
         .iter()
         .all(|d| d.is_infinite()));
+}
+
+#[test]
+fn slice_step_change_is_the_orientation_of_marching_cubes_chamfer() {
+    // The chamfer marching cubes puts where a one-slice step leaves its terrace, on a grid of
+    // h x h x H: through the midpoints of a y edge and a z edge of one cell, along x.
+    for (h, big) in [(0.4f32, 0.8f32), (0.5, 1.5), (0.45, 3.0), (1.0, 1.25)] {
+        let m = Mesh::new(
+            vec![
+                [0.0, h / 2.0, 0.0],
+                [h, h / 2.0, 0.0],
+                [0.0, 0.0, big / 2.0],
+            ],
+            vec![[0, 1, 2]],
+        )
+        .unwrap();
+        let theta = face_orientation(&m, [0.0, 0.0, 1.0])[0];
+        let want = slice_step_change(f64::from(big / h));
+        assert!(
+            (theta - want).abs() < 1e-6,
+            "{h} x {big}: {theta} vs {want}"
+        );
+    }
+    // Hand-computed: 1 - 1/sqrt(5) at ratio 2, 1 - 1/sqrt(10) at ratio 3.
+    assert!((slice_step_change(2.0) - 0.552_786).abs() < 1e-6);
+    assert!((slice_step_change(3.0) - 0.683_772).abs() < 1e-6);
+}
+
+#[test]
+fn auto_tau_stays_below_a_known_slice_step() {
+    // Terrace-chamfer corners of a ratio-2 grid change by 0.553, below the paper's 0.7: with the
+    // grid known, auto finds them; a fixed tau is left as given.
+    let m = step();
+    let topo = Topology::build(&m);
+    let step_change = slice_step_change(2.0);
+    let auto = StaircaseParams {
+        slice_step_change: Some(step_change),
+        ..Default::default()
+    };
+    let s = staircase_weights(&m, &topo, [0.0, 0.0, 1.0], &auto);
+    assert!(s.tau_auto);
+    assert!(
+        (s.tau - (step_change - SLICE_STEP_MARGIN)).abs() < 1e-6,
+        "{}",
+        s.tau
+    );
+    let fixed = StaircaseParams {
+        tau: Tau::Fixed(0.7),
+        ..auto
+    };
+    assert_eq!(
+        staircase_weights(&m, &topo, [0.0, 0.0, 1.0], &fixed).tau,
+        0.7
+    );
 }

@@ -180,7 +180,25 @@ def inplane_vessel(name, spacing, radius, direction_deg, length=30.0):
     inside = (across**2 + pz**2 <= radius**2) & (np.abs(along) <= length / 2)
     poly = surface(image(inside.astype(np.uint8), spacing))
     write(name, poly, grid_mm=list(spacing), stack_axis=[0, 0, 1], radius_mm=radius,
-          direction=[float(d[0]), float(d[1]), 0.0])
+          direction=[float(d[0]), float(d[1]), 0.0], centre_mm=[float(v / 2) for v in size],
+          length_mm=length)
+
+
+def crossing_vessel(name, spacing, radius, azimuth_deg, elevation_deg, length=30.0):
+    """A straight vessel crossing the slices (its axis `elevation_deg` out of the slice plane,
+    at `azimuth_deg` from x within it), ends cut: the comparison for the in-plane vessels."""
+    e, a = np.radians(elevation_deg), np.radians(azimuth_deg)
+    d = np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
+    size = (length + 12.0, length + 12.0, length * np.sin(e) + 2 * radius + 8.0)
+    shape = tuple(int(size[2 - k] / spacing[2 - k]) + 1 for k in range(3))
+    x, y, z = grid(shape, spacing)
+    px, py, pz = x - size[0] / 2, y - size[1] / 2, z - size[2] / 2
+    along = px * d[0] + py * d[1] + pz * d[2]
+    inside = (px**2 + py**2 + pz**2 - along**2 <= radius**2) & (np.abs(along) <= length / 2)
+    poly = surface(image(inside.astype(np.uint8), spacing))
+    write(name, poly, grid_mm=list(spacing), stack_axis=[0, 0, 1], radius_mm=radius,
+          direction=[float(v) for v in d], centre_mm=[float(v / 2) for v in size],
+          length_mm=length)
 
 
 blob("blob-s7", 7, (0.6, 0.6, 2.0))
@@ -203,6 +221,7 @@ weak_sphere("sphere-cut-quarter", (0.8, 0.8, 2.4), 0.25, radius=20.0, cut="flat"
 weak_sphere("sphere-cut-sixteenth", (1.0, 1.0, 3.0), 0.0625, cut="flat")
 inplane_vessel("vessel-inplane-x", (0.4, 0.4, 0.8), 1.2, 0.0)
 inplane_vessel("vessel-inplane-30", (0.4, 0.4, 0.8), 1.5, 30.0)
+crossing_vessel("vessel-crossing-45", (0.4, 0.4, 0.8), 1.5, 20.0, 45.0)
 
 with open("truth.json", "w") as f:
     json.dump(truth, f, indent=1, sort_keys=True)
