@@ -347,10 +347,11 @@ impl Plan {
     }
 
     /// Hash of everything in the plan that changes outputs for given settings, with the
-    /// program version: part of each case's resume key.
+    /// program version and [`OUTPUT_REVISION`]: part of each case's resume key.
     pub fn output_fingerprint(&self, settings: &[(String, StructureSettings)]) -> String {
         let value = serde_json::json!({
             "version": env!("CARGO_PKG_VERSION"),
+            "revision": OUTPUT_REVISION,
             "formats": self.formats,
             "annotate": self.annotate,
             "pictures": self.pictures,
@@ -366,6 +367,13 @@ impl Plan {
             .to_string()
     }
 }
+
+/// Raised whenever a change makes destair write something else for the same input and
+/// settings (an analysis or a default changed), so that a rerun redoes the cases an earlier
+/// build finished instead of mixing its results with the new ones in one cohort. The package
+/// version alone does not change between such builds. 1: turned grids and the grid-aware
+/// automatic tau (issue 61).
+pub const OUTPUT_REVISION: u32 = 1;
 
 /// Largest number of guard repair rounds.
 const MAX_GUARD_REPAIRS: usize = 20;
