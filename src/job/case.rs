@@ -587,6 +587,19 @@ fn process_structure(
                 summary.axis_source = "label_map_header".into();
             }
         }
+        // A cap is a clipped end; a structure that reaches no edge of its volume was clipped
+        // by no field of view, so its caps are cuts made in the segmentation, or terraces.
+        if let Some(source) = file.source.as_ref().filter(|s| !s.reaches_volume_edge) {
+            if !summary.caps.is_empty() {
+                summary.warnings.push(format!(
+                    "{} cap(s) found, but label {} of {} reaches no edge of its volume (within {} voxels): nothing was clipped by the field of view there; check that they are ends cut in the segmentation, or set caps = \"smooth\"",
+                    summary.caps.len(),
+                    source.label,
+                    source.label_map,
+                    crate::report::label_map::EDGE_MARGIN_VOXELS
+                ));
+            }
+        }
         report.warnings.extend(summary.warnings.iter().cloned());
         report.context = Some(summary);
         report.method = Some(method);

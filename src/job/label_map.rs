@@ -327,6 +327,7 @@ pub fn label_structures(
             Place::Frame(..) => "the label map's header (smoothed in the grid's own frame, mm along its axes i, j, k; written in world mm)",
             Place::World => "the mesh, estimated (the grid is sheared, so the surface is smoothed in world mm)",
         };
+        let near_edge = layer.near_edge(crate::report::label_map::EDGE_MARGIN_VOXELS);
         for (s, binary) in surfaces.into_iter().zip(binary) {
             let label = &layer.labels[s.label as usize - 1];
             let name = names[s.label as usize - 1].clone();
@@ -369,6 +370,7 @@ pub fn label_structures(
                     voxel_volume_mm3: label.n_voxels as f64 * grid.voxel_volume(),
                     voxel_mm: grid.spacing(),
                     stack_axis: grid.stack_axis(),
+                    reaches_volume_edge: near_edge.get(s.label as usize).copied().unwrap_or(true),
                     geometry: geometry.into(),
                     extraction,
                 },

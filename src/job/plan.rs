@@ -371,8 +371,8 @@ impl Plan {
 /// Raised whenever a change makes destair write something else for the same input and
 /// settings (an analysis or a default changed), so that a rerun redoes the cases an earlier
 /// build finished instead of mixing its results with the new ones in one cohort. The package
-/// version alone does not change between such builds. 1: turned grids and the grid-aware
-/// automatic tau (issue 61).
+/// version alone does not change between such builds. 1: turned grids, the grid-aware
+/// automatic tau and `reaches_volume_edge` (issue 61).
 pub const OUTPUT_REVISION: u32 = 1;
 
 /// Largest number of guard repair rounds.

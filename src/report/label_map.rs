@@ -5,6 +5,11 @@ use crate::volume::{LabelMap, Space};
 use serde::Serialize;
 use std::fmt::Write;
 
+/// How close (voxels) to a face of the volume a label must come to count as reaching its edge:
+/// a structure that leaves the field of view is segmented up to the last slice or one short of
+/// it (the neck corpus's tubes end one slice inside their volume).
+pub const EDGE_MARGIN_VOXELS: usize = 2;
+
 /// Where a structure made from a label map comes from, for its report.
 #[derive(Debug, Clone, Serialize)]
 pub struct LabelSource {
@@ -21,6 +26,9 @@ pub struct LabelSource {
     pub voxel_mm: [f64; 3],
     /// The thick-slice axis (largest spacing; k on ties) as a unit world direction.
     pub stack_axis: [f64; 3],
+    /// Whether the label reaches the volume's edge (a voxel within [`EDGE_MARGIN_VOXELS`] of a
+    /// face): only there can the field of view have clipped it.
+    pub reaches_volume_edge: bool,
     /// Where the voxel size and stack axis used for smoothing came from: the header (smoothed in
     /// the grid's frame) or, for sheared grids, estimates from the mesh (smoothed in world).
     pub geometry: String,

@@ -129,6 +129,39 @@ pub struct LabelVolume {
 }
 
 impl LabelVolume {
+    /// Per label index (0 background, then `labels` in order): whether any of its voxels lies
+    /// within `margin` voxels of a face of the volume, i.e. whether the field of view may have
+    /// cut the structure there. Only the volume's outer shell is read.
+    pub fn near_edge(&self, margin: usize) -> Vec<bool> {
+        let mut near = vec![false; self.labels.len() + 1];
+        let [nx, ny, nz] = self.dims;
+        if self.voxels.len() != nx * ny * nz {
+            return near;
+        }
+        let shell = |i: usize, n: usize| i < margin || i + margin >= n;
+        let mut mark = |start: usize, len: usize| {
+            for &v in &self.voxels[start..start + len] {
+                if let Some(n) = near.get_mut(v as usize) {
+                    *n = true;
+                }
+            }
+        };
+        for z in 0..nz {
+            for y in 0..ny {
+                let row = (z * ny + y) * nx;
+                if shell(z, nz) || shell(y, ny) {
+                    mark(row, nx);
+                } else {
+                    let m = margin.min(nx);
+                    mark(row, m);
+                    mark(row + nx - m, m);
+                }
+            }
+        }
+        near[0] = false;
+        near
+    }
+
     /// Dense label index at voxel (i, j, k).
     pub fn at(&self, i: usize, j: usize, k: usize) -> u16 {
         self.voxels[i + self.dims[0] * (j + self.dims[1] * k)]

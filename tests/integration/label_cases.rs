@@ -710,3 +710,68 @@ fn a_map_with_more_labels_than_allowed_fails_at_once() {
     );
     assert!(started.elapsed().as_secs_f64() < 30.0);
 }
+
+#[test]
+fn caps_on_a_structure_that_reaches_no_edge_of_its_volume_are_a_warning() {
+    // Two tubes along the slices (0.5 x 0.5 x 2 mm): one runs to one slice short of both ends
+    // of the volume (the field of view clipped it), the other is cut flat well inside. Both get
+    // their two end discs as caps; only the second's are questioned.
+    let tmp = tempfile::tempdir().unwrap();
+    let dims = [64, 36, 24];
+    let mut values = vec![0i64; dims.iter().product()];
+    for k in 0..dims[2] {
+        for j in 0..dims[1] {
+            for i in 0..dims[0] {
+                let r2 = |ci: f64| (i as f64 - ci).powi(2) + (j as f64 - 17.5).powi(2);
+                let label = if r2(16.5) <= 64.0 && (1..23).contains(&k) {
+                    1
+                } else if r2(46.5) <= 64.0 && (6..18).contains(&k) {
+                    2
+                } else {
+                    0
+                };
+                values[i + dims[0] * (j + dims[1] * k)] = label;
+            }
+        }
+    }
+    let grid = Grid {
+        matrix: [[0.5, 0.0, 0.0], [0.0, 0.5, 0.0], [0.0, 0.0, 2.0]],
+        origin: [0.0, 0.0, 0.0],
+        space: Space::Ras,
+    };
+    let volume = LabelVolume::from_values(dims, grid, values.into_iter()).unwrap();
+    write(
+        &tmp.path().join("cases/tubes/seg.nii.gz"),
+        &nifti::encode(&volume, true).unwrap(),
+    );
+    let cfg = config(
+        tmp.path(),
+        r#"
+[input]
+roots = ["cases"]
+case_depth = 1
+[output]
+root = "out"
+[labels]
+1 = "clipped"
+2 = "inside"
+[defaults]
+surface = "binary"
+method = "hc"
+"#,
+    );
+    destair_ok(&["run", cfg.to_str().unwrap()]);
+    let r = report(tmp.path(), "tubes");
+    for (name, reaches_edge) in [("clipped", true), ("inside", false)] {
+        let s = structure(&r, name);
+        assert_eq!(s["source"]["reaches_volume_edge"], reaches_edge, "{name}");
+        let caps = s["context"]["caps"].as_array().unwrap();
+        assert_eq!(caps.len(), 2, "{name}: {caps:?}");
+        let warned = s["warnings"].as_array().unwrap().iter().any(|w| {
+            w.as_str()
+                .unwrap()
+                .contains("reaches no edge of its volume")
+        });
+        assert_eq!(warned, !reaches_edge, "{name}: {}", s["warnings"]);
+    }
+}

@@ -104,3 +104,53 @@ fn gzip_pieces_arrive_in_order_and_whole() {
     let expect: u64 = data.iter().filter(|&&b| b == 7).count() as u64;
     assert_eq!(whole.counts[7], expect);
 }
+
+#[test]
+fn near_edge_matches_every_voxel_checked() {
+    // Random small volumes of a few labels: the shell walk against a test of every voxel.
+    let mut state = 0x9E37_79B9_7F4A_7C15u64;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state
+    };
+    for _ in 0..50 {
+        let dims = [
+            1 + (next() % 9) as usize,
+            1 + (next() % 9) as usize,
+            1 + (next() % 9) as usize,
+        ];
+        let n: usize = dims.iter().product();
+        // Mostly background, so that labels inside the volume occur.
+        let values: Vec<i64> = (0..n)
+            .map(|_| {
+                if next() % 5 == 0 {
+                    (next() % 4) as i64
+                } else {
+                    0
+                }
+            })
+            .collect();
+        let g = Grid::axis_aligned([1.0; 3], [0.0; 3], Space::Lps);
+        let v = LabelVolume::from_values(dims, g, values.into_iter()).unwrap();
+        for margin in 0..4 {
+            let mut want = vec![false; v.labels.len() + 1];
+            for k in 0..dims[2] {
+                for j in 0..dims[1] {
+                    for i in 0..dims[0] {
+                        let near = [i, j, k]
+                            .iter()
+                            .zip(dims)
+                            .any(|(&x, d)| x < margin || x + margin >= d);
+                        if near {
+                            want[v.at(i, j, k) as usize] = true;
+                        }
+                    }
+                }
+            }
+            want[0] = false;
+            assert_eq!(v.near_edge(margin), want, "{dims:?} margin {margin}");
+        }
+    }
+}
