@@ -724,9 +724,9 @@ fn caps_on_a_structure_that_reaches_no_edge_of_its_volume_are_a_warning() {
             for i in 0..dims[0] {
                 let r2 = |ci: f64| (i as f64 - ci).powi(2) + (j as f64 - 17.5).powi(2);
                 let label = if r2(16.5) <= 64.0 && (1..23).contains(&k) {
-                    1
-                } else if r2(46.5) <= 64.0 && (6..18).contains(&k) {
                     2
+                } else if r2(46.5) <= 64.0 && (6..18).contains(&k) {
+                    1
                 } else {
                     0
                 };
@@ -744,25 +744,20 @@ fn caps_on_a_structure_that_reaches_no_edge_of_its_volume_are_a_warning() {
         &tmp.path().join("cases/tubes/seg.nii.gz"),
         &nifti::encode(&volume, true).unwrap(),
     );
+    // The vein (label 2) leaves the field of view, the "tumour" (label 1) is the tube inside.
     let cfg = config(
         tmp.path(),
-        r#"
-[input]
-roots = ["cases"]
-case_depth = 1
-[output]
-root = "out"
-[labels]
-1 = "clipped"
-2 = "inside"
-[defaults]
+        concat!(
+            head!(),
+            r#"[defaults]
 surface = "binary"
 method = "hc"
-"#,
+"#
+        ),
     );
     destair_ok(&["run", cfg.to_str().unwrap()]);
     let r = report(tmp.path(), "tubes");
-    for (name, reaches_edge) in [("clipped", true), ("inside", false)] {
+    for (name, reaches_edge) in [("vein", true), ("tumor", false)] {
         let s = structure(&r, name);
         assert_eq!(s["source"]["reaches_volume_edge"], reaches_edge, "{name}");
         let caps = s["context"]["caps"].as_array().unwrap();

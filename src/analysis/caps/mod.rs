@@ -88,7 +88,7 @@ pub struct CapParams {
     pub max_section_span: f32,
     /// The voxel grid the mesh was made on, when known or found.
     #[serde(skip)]
-    pub grid: Option<crate::analysis::Grid>,
+    pub grid: Option<crate::analysis::grid_frame::Grid>,
 }
 
 impl Default for CapParams {
