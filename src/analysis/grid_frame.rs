@@ -15,7 +15,7 @@
 //! stack axis (the corpus trachea: 90 degrees off).
 
 use super::voxel_size::{axis_spacing, zero_tolerance, AxisSpacing, MIN_EXPLAINED};
-use crate::mesh::geometry::{cross64, dot64};
+use crate::mesh::geometry::{cross64, dot64, unit64};
 use crate::mesh::{Mesh, Topology};
 use rayon::prelude::*;
 
@@ -85,8 +85,8 @@ pub fn turned_grid(mesh: &Mesh, topology: &Topology) -> Option<Grid> {
     let sample = sampled_edges(mesh, topology);
     // A first axis must show grid steps in the sampled edges on its own before any frame
     // around it is tried: most candidates fail there, for the price of one sort.
-    for first in faces.first_axes() {
-        let a = faces.refined(first).unwrap_or(first);
+    // (The candidates are exact already: refined peaks and their cross products.)
+    for a in faces.first_axes() {
         let Some(along_a) = sampled_steps(&sample, a, zero_tol) else {
             continue;
         };
@@ -172,7 +172,7 @@ impl SampledFaces {
             |list: &[[f64; 3]], d: [f64; 3]| list.iter().all(|&o| dot64(o, d).abs() < cos_apart);
         let mut peaks: Vec<[f64; 3]> = Vec::new();
         for (k, _) in heaviest {
-            let Some(d) = unit(k.map(f64::from)) else {
+            let Some(d) = unit64(k.map(f64::from)) else {
                 continue;
             };
             let d = self.refined(d).unwrap_or(d);
@@ -186,7 +186,7 @@ impl SampledFaces {
         let mut candidates = peaks.clone();
         for (i, &p) in peaks.iter().enumerate() {
             for &q in &peaks[i + 1..] {
-                if let Some(c) = unit(cross64(p, q)) {
+                if let Some(c) = unit64(cross64(p, q)) {
                     if distinct(&candidates, c) {
                         candidates.push(c);
                     }
@@ -207,7 +207,7 @@ impl SampledFaces {
                 (0..3).for_each(|k| sum[k] += s * n[k]);
             }
         }
-        unit(sum)
+        unit64(sum)
     }
 
     /// Up to [`SECOND_AXES_TRIED`] unit directions perpendicular to `a`, strongest first: the
@@ -276,11 +276,6 @@ fn apart_mod_90(a: f64, b: f64) -> f64 {
     d.min(90.0 - d)
 }
 
-fn unit(v: [f64; 3]) -> Option<[f64; 3]> {
-    let len = dot64(v, v).sqrt();
-    (len > 0.0 && len.is_finite()).then(|| v.map(|x| x / len))
-}
-
 /// A unit vector perpendicular to the unit vector `a`.
 fn perpendicular(a: [f64; 3]) -> [f64; 3] {
     let k = (0..3)
@@ -288,7 +283,7 @@ fn perpendicular(a: [f64; 3]) -> [f64; 3] {
         .unwrap_or(0);
     let mut e = [0.0; 3];
     e[k] = 1.0;
-    unit(cross64(a, e)).unwrap_or([1.0, 0.0, 0.0])
+    unit64(cross64(a, e)).unwrap_or([1.0, 0.0, 0.0])
 }
 
 /// The offset vectors (mm) of the edges of an evenly strided sample of about

@@ -213,3 +213,10 @@ pub fn cross64(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 pub fn dot64(a: [f64; 3], b: [f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
+
+/// `v` scaled to length 1 in f64; None for a zero or non-finite vector.
+#[inline]
+pub fn unit64(v: [f64; 3]) -> Option<[f64; 3]> {
+    let len = dot64(v, v).sqrt();
+    (len > 0.0 && len.is_finite()).then(|| v.map(|x| x / len))
+}

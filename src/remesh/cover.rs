@@ -5,7 +5,8 @@
 //! input's distance from the remeshed one, and this bounds it.
 
 use super::halfedge::{next, NONE};
-use super::{dist, dot, min_angle, tri_normal, unit, Kind, Remesher};
+use super::{dist, dot, min_angle, tri_normal, Kind, Remesher};
+use crate::mesh::geometry::unit64;
 use crate::mesh::{Mesh, Topology};
 use crate::spatial::{closest_point_and_region, TriangleBvh, TriangleRegion};
 use rayon::prelude::*;
@@ -277,8 +278,8 @@ impl Remesher {
 /// has no angle under the floor, or under the smallest it had.
 fn keeps_shape(old: [[f64; 3]; 3], new: [[f64; 3]; 3]) -> bool {
     match (
-        unit(tri_normal(old[0], old[1], old[2])),
-        unit(tri_normal(new[0], new[1], new[2])),
+        unit64(tri_normal(old[0], old[1], old[2])),
+        unit64(tri_normal(new[0], new[1], new[2])),
     ) {
         (Some(a), Some(b)) => {
             dot(a, b) >= 0.5 && min_angle(new) >= PLACE_FLOOR_DEG.to_radians().min(min_angle(old))

@@ -1,7 +1,8 @@
 //! Edge flips towards valence 6 (4 on a border), and the shape check every flip passes.
 
 use super::halfedge::{next, NONE};
-use super::{dot, min_angle, tri_normal, unit, Remesher};
+use super::{dot, min_angle, tri_normal, Remesher};
+use crate::mesh::geometry::unit64;
 
 impl Remesher {
     /// The corners [a, b, c, d] of the two faces of h (edge a-b, c and d opposite) when its
@@ -87,10 +88,10 @@ impl Remesher {
         let n_old = old.map(|t| tri_normal(t[0], t[1], t[2]));
         let n_new = new.map(|t| tri_normal(t[0], t[1], t[2]));
         let (Some(o0), Some(o1), Some(n0), Some(n1)) = (
-            unit(n_old[0]),
-            unit(n_old[1]),
-            unit(n_new[0]),
-            unit(n_new[1]),
+            unit64(n_old[0]),
+            unit64(n_old[1]),
+            unit64(n_new[0]),
+            unit64(n_new[1]),
         ) else {
             return false;
         };

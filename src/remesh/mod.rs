@@ -18,6 +18,7 @@ mod reference;
 mod relax;
 pub mod sizing;
 
+use crate::mesh::geometry::unit64;
 use crate::mesh::{Mesh, Topology};
 use halfedge::{next, prev, HalfEdgeMesh, NONE};
 use rayon::prelude::*;
@@ -187,10 +188,6 @@ fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
 }
 fn tri_normal(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> [f64; 3] {
     cross(sub(b, a), sub(c, a))
-}
-fn unit(v: [f64; 3]) -> Option<[f64; 3]> {
-    let l = dot(v, v).sqrt();
-    (l > 0.0 && l.is_finite()).then(|| v.map(|x| x / l))
 }
 
 /// Remeshes `mesh` whose faces carry patch ids `face_ids` (wall and caps; edges between
@@ -621,8 +618,8 @@ impl Remesher {
                 let before = t.map(|x| at(x, mid));
                 let after = t.map(|x| at(x, p));
                 match (
-                    unit(tri_normal(before[0], before[1], before[2])),
-                    unit(tri_normal(after[0], after[1], after[2])),
+                    unit64(tri_normal(before[0], before[1], before[2])),
+                    unit64(tri_normal(after[0], after[1], after[2])),
                 ) {
                     (Some(u), Some(w)) => dot(u, w) < 0.5,
                     _ => true,
@@ -724,7 +721,7 @@ impl Remesher {
                     });
                     let n_old = tri_normal(old[0], old[1], old[2]);
                     let n_new = tri_normal(new[0], new[1], new[2]);
-                    let (Some(u), Some(w)) = (unit(n_old), unit(n_new)) else {
+                    let (Some(u), Some(w)) = (unit64(n_old), unit64(n_new)) else {
                         return None;
                     };
                     if dot(u, w) < 0.5 || min_angle(new) < self.collapse_floor {

@@ -3,7 +3,8 @@
 //! plane, then back onto the input; rim vertices move to the middle of their rim neighbours
 //! along the rim. Moves that would turn a face over are undone.
 
-use super::{dot, sub, tri_normal, unit, Kind, Placement, Remesher, NONE};
+use super::{dot, sub, tri_normal, Kind, Placement, Remesher, NONE};
+use crate::mesh::geometry::unit64;
 use rayon::prelude::*;
 
 impl Remesher {
@@ -76,7 +77,7 @@ impl Remesher {
                         let n_ring = ring.len() as f64;
                         let centre: [f64; 3] =
                             std::array::from_fn(|k| 0.5 * (centre[k] + x[k] + spring[k] / n_ring));
-                        let q = match unit(normal) {
+                        let q = match unit64(normal) {
                             Some(nrm) => {
                                 let off = dot(sub(x, centre), nrm);
                                 std::array::from_fn(|k| centre[k] + off * nrm[k])
@@ -116,8 +117,8 @@ impl Remesher {
                     let before = t.map(|v| old[v as usize]);
                     let after = t.map(|v| self.he.pos[v as usize]);
                     match (
-                        unit(tri_normal(before[0], before[1], before[2])),
-                        unit(tri_normal(after[0], after[1], after[2])),
+                        unit64(tri_normal(before[0], before[1], before[2])),
+                        unit64(tri_normal(after[0], after[1], after[2])),
                     ) {
                         (Some(u), Some(w)) => dot(u, w) < 0.5,
                         _ => true,
