@@ -372,8 +372,9 @@ impl Plan {
 /// settings (an analysis or a default changed), so that a rerun redoes the cases an earlier
 /// build finished instead of mixing its results with the new ones in one cohort. The package
 /// version alone does not change between such builds. 1: turned grids, the grid-aware
-/// automatic tau and `reaches_volume_edge` (issue 61).
-pub const OUTPUT_REVISION: u32 = 1;
+/// automatic tau and `reaches_volume_edge` (issue 61). 2: flat regions filled from their
+/// flattest face within the growth limits, coplanar faces, rises and dents (issue 61's caps).
+pub const OUTPUT_REVISION: u32 = 2;
 
 /// Largest number of guard repair rounds.
 const MAX_GUARD_REPAIRS: usize = 20;

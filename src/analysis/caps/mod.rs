@@ -3,27 +3,32 @@
 //! by how the surface leaves them: around a cap it turns the same way everywhere, around a
 //! terrace it goes up on one side and down on the other.
 //!
-//! Flat faces (all three vertices with normal curvature <= 5 degrees) form connected regions;
-//! regions under 10 faces are dropped; the rest grow over neighbours of nearly the same
-//! orientation; then each region's border vertices are checked for the sign of the largest
-//! offset of their outside neighbours along the region normal: one direction (up to a small
-//! minority, for smoothed meshes) makes a cap. That test alone also accepts every flat facet of
-//! a convex surface and the top of every lobe, so checks go beyond the paper: following the
-//! surface outwards from the border (up to half the region's width) it must turn sharply, as
-//! the wall at a cut does (75 degrees or more); the region must be a clipped end (compact, the
-//! wall behind it running on along the normal at least as far as the region is long, with the
-//! region's cross-section: a lobe's top steps outward into the next terrace, the side of a tube
-//! lying across the normal ends within the tube's width); and, when staircase reach is known,
-//! most of the border must lie within reach of a staircase, since a cap only matters where
-//! staircase smoothing would otherwise reach it (§4.3). A clipped end that cuts the grid
-//! obliquely is terraced on a binary surface, with no flat face to grow from; it is found by
-//! looking again on a copy smoothed by 10 Laplace iterations, where it is flat (the faces, not
-//! the positions, are what the copy contributes).
+//! Flat faces (all three vertices with normal curvature <= 5 degrees, or coplanar with two
+//! edge neighbours: a cut a few slices tall has no vertex away from a chamfer) form regions,
+//! each filled from the flattest face not yet taken over flat faces within the growth limits
+//! of it (on a smoothed mesh nearly every face is flat at its sampling, and an unlimited fill
+//! joins discs, walls and the rims between); regions under 10 faces are dropped; the rest grow
+//! over neighbours of nearly the same orientation; then each region's border vertices are
+//! checked for the sign of the largest offset of their outside neighbours along the region
+//! normal, or, where the surface within reach beyond rises above them, up: one direction (up
+//! to a small minority, for smoothed meshes) makes a cap, and on a closed oriented mesh it must
+//! be inwards (a region the surface leaves outwards all round is a dent). That test alone also
+//! accepts every flat facet of a convex surface and the top of every lobe, so checks go beyond
+//! the paper: following the surface outwards from the border (up to half the region's width)
+//! it must turn sharply, as the wall at a cut does (75 degrees or more); the region must be a
+//! clipped end (compact, the wall behind it running on along the normal at least as far as the
+//! region is long, with the region's cross-section: a lobe's top steps outward into the next
+//! terrace, the side of a tube lying across the normal ends within the tube's width); and,
+//! when staircase reach is known, most of the border must lie within reach of a staircase,
+//! since a cap only matters where staircase smoothing would otherwise reach it (§4.3). A
+//! clipped end that cuts the grid obliquely is terraced on a binary surface, with no flat face
+//! to grow from; it is found by looking again on a copy smoothed by 10 Laplace iterations,
+//! where it is flat (the faces, not the positions, are what the copy contributes).
 
 mod region;
 
 use crate::mesh::face_neighbours::FaceNeighbours;
-use crate::mesh::geometry::{dot64, triangle_area_vector};
+use crate::mesh::geometry::{dot64, signed_volume, triangle_area_vector};
 use crate::mesh::umbrella::{padded, umbrella_pass, unpadded, written_before_read, NeighbourLists};
 use crate::mesh::{Mesh, Topology};
 use crate::metrics::normal_curvature::TurnLimits;
@@ -36,6 +41,9 @@ use serde::Serialize;
 pub struct CapParams {
     /// Largest vertex normal curvature of a flat face (degrees; paper: 5).
     pub flat_deg: f32,
+    /// A face whose normal is within this angle (degrees) of two of its edge neighbours' is
+    /// flat too: a cut a few slices tall holds no vertex that touches no chamfer.
+    pub coplanar_deg: f32,
     /// Smallest flat region considered (faces; paper: 10).
     pub min_faces: usize,
     /// Growth: largest angle between a face and the region face it is reached from (degrees).
@@ -95,6 +103,7 @@ impl Default for CapParams {
     fn default() -> Self {
         Self {
             flat_deg: 5.0,
+            coplanar_deg: 0.5,
             min_faces: 10,
             grow_step_deg: 10.0,
             grow_total_deg: 25.0,
@@ -253,6 +262,9 @@ pub fn cap_candidates(mesh: &Mesh, topology: &Topology, params: &CapParams) -> C
 /// run beside other analyses of the mesh.
 pub struct CapSearch {
     adjacency: FaceNeighbours,
+    /// Whether the faces face out of the structure (its signed volume is positive), where the
+    /// mesh is a closed, consistently oriented manifold; unknown otherwise.
+    outward: Option<bool>,
     /// Per-vertex scratch for examining regions, shared by both looks (one per worker busy at
     /// a time, not one per worker and look).
     scratch: std::sync::Mutex<Vec<RegionScratch>>,
@@ -265,8 +277,14 @@ pub struct CapLook(Look);
 impl CapSearch {
     /// Finds the faces' edge neighbours of `mesh` (whose topology is `topology`).
     pub fn new(mesh: &Mesh, topology: &Topology) -> CapSearch {
+        let volume = topology
+            .is_closed_oriented_manifold()
+            .then(|| signed_volume(mesh));
         CapSearch {
             adjacency: FaceNeighbours::build(mesh, topology),
+            outward: volume
+                .filter(|v| *v != 0.0 && v.is_finite())
+                .map(|v| v > 0.0),
             scratch: std::sync::Mutex::new(Vec::new()),
         }
     }
@@ -274,13 +292,7 @@ impl CapSearch {
     /// The look at the mesh whose normals `turns` holds (computed once for every analysis of
     /// the mesh), as it is.
     pub fn on_mesh(&self, turns: &TurnLimits, topology: &Topology, params: &CapParams) -> CapLook {
-        CapLook(caps_of(
-            turns,
-            topology,
-            (&self.adjacency, &self.scratch),
-            params,
-            f32::INFINITY,
-        ))
+        CapLook(caps_of(turns, topology, self, params, f32::INFINITY))
     }
 
     /// The look at a copy of `mesh` smoothed by `params.smoothed_copy_iterations` Laplace
@@ -300,7 +312,7 @@ impl CapSearch {
             CapLook(caps_of(
                 &TurnLimits::new(&copy, topology),
                 topology,
-                (&self.adjacency, &self.scratch),
+                self,
                 params,
                 params.smoothed_copy_flat_deg_per_mm,
             ))
@@ -392,41 +404,79 @@ fn low_pass(mesh: &Mesh, topology: &Topology, iterations: usize) -> Vec<[f32; 3]
 }
 
 /// Caps of the mesh whose normals `turns` holds, as it is (Algorithm 3.1 with the checks
-/// above); flat faces turn by at most `flat_deg_per_mm` too.
+/// above); flat faces turn by at most `flat_deg_per_mm` too (infinite: no limit, and faces
+/// coplanar with two neighbours count as flat).
 fn caps_of(
     turns: &TurnLimits,
     topology: &Topology,
-    (adjacency, scratch_pool): (&FaceNeighbours, &std::sync::Mutex<Vec<RegionScratch>>),
+    search: &CapSearch,
     params: &CapParams,
     flat_deg_per_mm: f32,
 ) -> Look {
+    let (adjacency, scratch_pool) = (&search.adjacency, &search.scratch);
     let mesh = turns.mesh();
     let n_faces = mesh.n_triangles();
     let tris = mesh.triangles();
     let flat_vertex = turns.within(params.flat_deg, flat_deg_per_mm);
     let normals = turns.face_normals();
     let degenerate = |f: usize| normals[f] == [0.0; 3];
+    // Per face: how far its edge neighbours turn from it (the sum of 1 - cos, to pick seeds
+    // from the flattest faces first), and whether at least two of them are coplanar with it.
+    let cos_coplanar = params.coplanar_deg.to_radians().cos();
+    let roughness: Vec<(f32, bool)> = (0..n_faces as u32)
+        .into_par_iter()
+        .map_init(Vec::new, |scratch, f| {
+            let n = normals[f as usize];
+            if n == [0.0; 3] {
+                return (f32::INFINITY, false);
+            }
+            let (mut turn, mut coplanar) = (0.0f32, 0);
+            adjacency.each((mesh, topology), f, scratch, |g| {
+                let c = dot(n, normals[g as usize]);
+                turn += 1.0 - c;
+                coplanar += usize::from(c >= cos_coplanar);
+            });
+            (turn, coplanar >= 2)
+        })
+        .collect();
+    // Flat: every vertex flat (the paper), or coplanar with two neighbours (the rows of a cut
+    // a few slices tall, whose every vertex touches a chamfer); not on the smoothed copy,
+    // where a flat face must be flat at the mm scale, which two neighbours do not show.
+    let coplanar_is_flat = flat_deg_per_mm == f32::INFINITY;
     let flat: Vec<bool> = (0..n_faces)
-        .map(|f| !degenerate(f) && tris[f].iter().all(|&v| flat_vertex[v as usize]))
+        .map(|f| {
+            !degenerate(f)
+                && ((coplanar_is_flat && roughness[f].1)
+                    || tris[f].iter().all(|&v| flat_vertex[v as usize]))
+        })
         .collect();
     // Growth limits as cosines (no acos per visited face).
+    let cos_step = params.grow_step_deg.to_radians().cos();
     let cos_total = params.grow_total_deg.to_radians().cos();
-    // Connected flat regions. Flat faces of another orientation (a wall's pixel facet beside a
-    // cut's) are another region.
+    // Flat regions, each filled from the flattest face not yet taken over flat faces within
+    // the growth limits of it: on a smoothed mesh, flat at a fine sampling almost everywhere,
+    // a flood fill without them would join the discs, the walls and the rounded rims between.
+    let seeds = flattest_first(&flat, &roughness);
     let mut region = vec![NONE; n_faces];
     let mut regions: Vec<Vec<u32>> = Vec::new();
     let mut scratch = Vec::new();
-    for start in 0..n_faces {
-        if !flat[start] || region[start] != NONE {
+    for &start in &seeds {
+        if region[start as usize] != NONE {
             continue;
         }
         let id = regions.len() as u32;
-        let mut members = vec![start as u32];
-        region[start] = id;
+        let mut members = vec![start];
+        region[start as usize] = id;
+        let seed_normal = normals[start as usize];
         let mut i = 0;
         while let Some(&f) = members.get(i) {
             adjacency.each((mesh, topology), f, &mut scratch, |g| {
-                if flat[g as usize] && region[g as usize] == NONE {
+                let n = normals[g as usize];
+                if flat[g as usize]
+                    && region[g as usize] == NONE
+                    && dot(n, normals[f as usize]) >= cos_step
+                    && dot(n, seed_normal) >= cos_total
+                {
                     region[g as usize] = id;
                     members.push(g);
                 }
@@ -450,8 +500,6 @@ fn caps_of(
             }
         }
     }
-    // Growth limits as cosines (no acos per visited face).
-    let cos_step = params.grow_step_deg.to_radians().cos();
     for (id, faces) in kept.iter_mut().enumerate() {
         let id = id as u32;
         let mean = region_normal(mesh, faces);
@@ -476,17 +524,24 @@ fn caps_of(
     // A grown region's verdict depends only on its faces (a face goes to the first region
     // that reaches it), so all regions are grown first, then examined side by side (a large
     // one with its large steps in parallel too) and counted in order.
-    let gaps = terrace_gaps(mesh, &kept);
-    let verdicts: Vec<Verdict> = (kept.par_iter().zip(&gaps))
-        .map(|(faces, &gap)| {
+    let planes = TerracePlanes::of(mesh, &kept);
+    let verdicts: Vec<Verdict> = (kept.par_iter().enumerate())
+        .map(|(i, faces)| {
+            let gap = || planes.gap(i);
             let taken = scratch_pool.lock().map(|mut pool| pool.pop());
             let mut scratch = taken
                 .ok()
                 .flatten()
                 .filter(|s| s.fits(mesh.n_vertices(), n_faces))
                 .unwrap_or_else(|| RegionScratch::new(mesh.n_vertices(), n_faces));
-            let verdict =
-                examine_region(mesh, topology, normals, (faces, gap), &mut scratch, params);
+            let verdict = examine_region(
+                mesh,
+                topology,
+                (normals, search.outward),
+                (faces, gap),
+                &mut scratch,
+                params,
+            );
             if let Ok(mut pool) = scratch_pool.lock() {
                 pool.push(scratch);
             }
@@ -508,63 +563,93 @@ fn caps_of(
     look
 }
 
-/// Per region, the spacing (mm) of the terraces facing the same way (within 2 degrees): on a
-/// mesh from slices whose grid is unknown (rotated), how deep to look behind a flat region for
-/// the next terrace. It is the smallest gap between the planes of consecutive such regions
-/// that another gap repeats (within 5 %): slices repeat, a vessel's far end or a side branch
-/// does not. Infinite where there is none.
-fn terrace_gaps(mesh: &Mesh, regions: &[Vec<u32>]) -> Vec<f32> {
-    let (tris, p) = (mesh.triangles(), mesh.positions());
-    // Each region's normal, a point of its plane (the mean of its faces' first corners) and
-    // its area.
-    let planes: Vec<([f32; 3], [f64; 3], f64)> = regions
-        .par_iter()
-        .map(|faces| {
-            let mut point = [0.0f64; 3];
-            for &f in faces {
-                let q = p[tris[f as usize][0] as usize];
-                (0..3).for_each(|k| point[k] += f64::from(q[k]));
-            }
-            let n_faces = faces.len().max(1) as f64;
-            let point = point.map(|x| x / n_faces);
-            (region_normal(mesh, faces), point, region_area(mesh, faces))
-        })
-        .collect();
-    let cos_parallel = 2.0f32.to_radians().cos();
-    planes
-        .par_iter()
-        .map(|&(n, _, _)| {
-            let parallel: Vec<&([f32; 3], [f64; 3], f64)> = (planes.iter())
-                .filter(|&&(m, _, _)| dot(n, m) >= cos_parallel)
-                .collect();
-            // The levels along the regions' common normal (their area-weighted mean): one
-            // region's own normal, off by a tenth of a degree, would shift planes 100 mm
-            // apart by 0.2 mm. Differences of levels do not depend on where the mesh lies.
-            let mut common = [0.0f64; 3];
-            for &&(m, _, area) in &parallel {
-                (0..3).for_each(|k| common[k] += area * f64::from(m[k]));
-            }
-            let len = dot64(common, common).sqrt();
-            if !(len > 0.0 && len.is_finite()) {
-                return f32::INFINITY;
-            }
-            let common = common.map(|x| x / len);
-            let mut levels: Vec<f64> = (parallel.iter())
-                .map(|&&(_, point, _)| dot64(point, common))
-                .collect();
-            levels.sort_unstable_by(f64::total_cmp);
-            // Gaps between distinct planes (regions of one terrace split in two are one).
-            let mut gaps: Vec<f64> = levels
-                .windows(2)
-                .map(|w| w[1] - w[0])
-                .filter(|&g| g > 1e-3)
-                .collect();
-            gaps.sort_unstable_by(f64::total_cmp);
-            gaps.windows(2)
-                .find(|w| w[1] <= 1.05 * w[0])
-                .map_or(f32::INFINITY, |w| w[0] as f32)
-        })
-        .collect()
+/// The flat faces, flattest first: by how far their neighbours turn from them, in buckets (a
+/// counting sort, in face order within a bucket; the order only has to start each region
+/// well inside a flat area rather than on a rounded rim).
+fn flattest_first(flat: &[bool], roughness: &[(f32, bool)]) -> Vec<u32> {
+    const BUCKETS: usize = 64;
+    // sqrt(sum of 1 - cos) is about the neighbours' turn in radians over sqrt(2): buckets of
+    // about a quarter of a degree, the last holding every turn from 16 degrees.
+    let bucket = |f: usize| ((roughness[f].0.max(0.0).sqrt() * 320.0) as usize).min(BUCKETS - 1);
+    let mut counts = [0usize; BUCKETS + 1];
+    for f in (0..flat.len()).filter(|&f| flat[f]) {
+        counts[bucket(f) + 1] += 1;
+    }
+    for b in 0..BUCKETS {
+        counts[b + 1] += counts[b];
+    }
+    let mut seeds = vec![0u32; counts[BUCKETS]];
+    for f in (0..flat.len()).filter(|&f| flat[f]) {
+        let slot = &mut counts[bucket(f)];
+        seeds[*slot] = f as u32;
+        *slot += 1;
+    }
+    seeds
+}
+
+/// Each flat region's plane: its normal, a point of it (the mean of its faces' first corners)
+/// and its area; to find, for the few regions that need it, the spacing of the terraces
+/// facing the same way (a pass over every region per region asked).
+struct TerracePlanes(Vec<([f32; 3], [f64; 3], f64)>);
+
+impl TerracePlanes {
+    fn of(mesh: &Mesh, regions: &[Vec<u32>]) -> Self {
+        let (tris, p) = (mesh.triangles(), mesh.positions());
+        TerracePlanes(
+            regions
+                .par_iter()
+                .map(|faces| {
+                    let mut point = [0.0f64; 3];
+                    for &f in faces {
+                        let q = p[tris[f as usize][0] as usize];
+                        (0..3).for_each(|k| point[k] += f64::from(q[k]));
+                    }
+                    let n_faces = faces.len().max(1) as f64;
+                    let point = point.map(|x| x / n_faces);
+                    (region_normal(mesh, faces), point, region_area(mesh, faces))
+                })
+                .collect(),
+        )
+    }
+
+    /// The spacing (mm) of the terraces facing the way region `i` faces (within 2 degrees):
+    /// on a mesh from slices whose grid is unknown (rotated), how deep to look behind a flat
+    /// region for the next terrace. It is the smallest gap between the planes of consecutive
+    /// such regions that another gap repeats (within 5 %): slices repeat, a vessel's far end
+    /// or a side branch does not. Infinite where there is none.
+    fn gap(&self, i: usize) -> f32 {
+        let cos_parallel = 2.0f32.to_radians().cos();
+        let n = self.0[i].0;
+        let parallel: Vec<&([f32; 3], [f64; 3], f64)> = (self.0.iter())
+            .filter(|&&(m, _, _)| dot(n, m) >= cos_parallel)
+            .collect();
+        // The levels along the regions' common normal (their area-weighted mean): one
+        // region's own normal, off by a tenth of a degree, would shift planes 100 mm apart by
+        // 0.2 mm. Differences of levels do not depend on where the mesh lies.
+        let mut common = [0.0f64; 3];
+        for &&(m, _, area) in &parallel {
+            (0..3).for_each(|k| common[k] += area * f64::from(m[k]));
+        }
+        let len = dot64(common, common).sqrt();
+        if !(len > 0.0 && len.is_finite()) {
+            return f32::INFINITY;
+        }
+        let common = common.map(|x| x / len);
+        let mut levels: Vec<f64> = (parallel.iter())
+            .map(|&&(_, point, _)| dot64(point, common))
+            .collect();
+        levels.sort_unstable_by(f64::total_cmp);
+        // Gaps between distinct planes (regions of one terrace split in two are one).
+        let mut gaps: Vec<f64> = levels
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .filter(|&g| g > 1e-3)
+            .collect();
+        gaps.sort_unstable_by(f64::total_cmp);
+        gaps.windows(2)
+            .find(|w| w[1] <= 1.05 * w[0])
+            .map_or(f32::INFINITY, |w| w[0] as f32)
+    }
 }
 
 /// Area of a set of faces (mm²).

@@ -63,8 +63,8 @@ impl RegionScratch {
 pub(super) fn examine_region(
     mesh: &Mesh,
     topology: &Topology,
-    normals: &[[f32; 3]],
-    (faces, terrace_gap): (&[u32], f32),
+    (normals, outward): (&[[f32; 3]], Option<bool>),
+    (faces, terrace_gap): (&[u32], impl Fn() -> f32),
     scratch: &mut RegionScratch,
     params: &CapParams,
 ) -> Verdict {
@@ -124,7 +124,7 @@ pub(super) fn examine_region(
     let normal = unit_f32(area_sum);
     // Sign of the largest offset of the outside neighbours along the region normal, counted
     // where the slope is clear.
-    let (up, down) = border
+    let sides: Vec<Side> = border
         .par_iter()
         .with_min_len(4096)
         .map(|&v| {
@@ -143,14 +143,15 @@ pub(super) fn examine_region(
             }
             let (d, len) = best;
             if d > params.min_slope * len {
-                (1, 0)
+                Side::Up
             } else if d < -params.min_slope * len {
-                (0, 1)
+                Side::Down
             } else {
-                (0, 0)
+                Side::Level
             }
         })
-        .reduce(|| (0usize, 0usize), |a, b| (a.0 + b.0, a.1 + b.1));
+        .collect();
+    let (up, down) = count_sides(&sides, &[]);
     if up + down == 0 {
         return Verdict::Other;
     }
@@ -172,16 +173,33 @@ pub(super) fn examine_region(
     // across); a flat facet of a rounded surface is followed by more facets at shallow angles.
     // Follow the surface outwards from the border up to a share of the region's width and see
     // how far it turns.
-    let turned = turning_border(
+    let beyond = turning_border(
         mesh,
         topology,
         normals,
         &border,
         in_region,
-        (normal, params.turn_reach * width, params.turn_deg),
+        (
+            normal,
+            params.turn_reach * width,
+            params.turn_deg,
+            params.min_slope,
+        ),
         reached,
     );
-    if (turned as f32) < params.min_turning_border * border.len() as f32 {
+    // On a smoothed mesh the first ring beyond a border may show no slope where the surface
+    // rises gently into the next terrace or a junction: where it rises within the reach, the
+    // border vertex counts as leaving upwards.
+    let (up, down) = count_sides(&sides, &beyond.rises);
+    if up.min(down) as f32 > params.max_minority * (up + down) as f32 {
+        return Verdict::Terrace;
+    }
+    // Behind a clipped end lies the structure: the surface leaves it inwards. Where it leaves
+    // outwards all round, the region is the floor of a dent (an inner corner's chamfer).
+    if outward.is_some_and(|out| out != (down > up)) {
+        return Verdict::Other;
+    }
+    if (beyond.turned as f32) < params.min_turning_border * border.len() as f32 {
         return Verdict::Other;
     }
     // The slices along the normal: the grid's spacing, or (grid unknown) the gap to the next
@@ -189,8 +207,9 @@ pub(super) fn examine_region(
     // is no terrace).
     let slice = match params.grid {
         Some(g) => g.spacing_along(normal),
-        None if terrace_gap <= width => terrace_gap,
-        None => 0.0,
+        None => Some(terrace_gap())
+            .filter(|&gap| gap <= width)
+            .unwrap_or(0.0),
     };
     let slices = params.runs_on_slices * slice;
     let depths = Depths {
@@ -451,19 +470,57 @@ impl Reached {
     }
 }
 
-/// Number of border vertices from which the surface, followed outwards (outside the region)
-/// up to `reach` mm, reaches a face whose normal is at least `turn_deg` from `normal`.
+/// How a border vertex's outside neighbours leave a region's plane (the paper's sign test).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Side {
+    Up,
+    Down,
+    Level,
+}
+
+/// Border vertices leaving upwards and downwards: by the first ring's `sides`, a vertex that
+/// `rises` (when given) counting as up whatever its first ring shows.
+fn count_sides(sides: &[Side], rises: &[bool]) -> (usize, usize) {
+    let mut counts = (0, 0);
+    for (i, side) in sides.iter().enumerate() {
+        match (rises.get(i).copied().unwrap_or(false), side) {
+            (true, _) | (false, Side::Up) => counts.0 += 1,
+            (false, Side::Down) => counts.1 += 1,
+            (false, Side::Level) => {}
+        }
+    }
+    counts
+}
+
+/// What the surface does beyond a region's border, followed outwards up to the reach.
+struct Beyond {
+    /// Border vertices from which it reaches a face turned at least the turn angle.
+    turned: usize,
+    /// Per border vertex: it reaches a vertex above the vertex's level along the normal by
+    /// more than the least slope times the path there.
+    rises: Vec<bool>,
+}
+
+/// Follows the surface outwards (outside the region) from each border vertex up to `reach`
+/// mm: which border vertices reach a face whose normal is at least `turn_deg` from `normal`,
+/// and which reach a vertex rising above them by more than `min_slope` times the path.
 fn turning_border(
     mesh: &Mesh,
     topology: &Topology,
     face_normals: &[[f32; 3]],
     border: &[u32],
     in_region: impl Fn(u32) -> bool,
-    (normal, reach, turn_deg): ([f32; 3], f32, f32),
+    (normal, reach, turn_deg, min_slope): ([f32; 3], f32, f32, f32),
     best: &mut Reached,
-) -> usize {
+) -> Beyond {
     use std::collections::BinaryHeap;
     let p = mesh.positions();
+    // Height of `v` above `from` along the normal (from the difference: where the mesh lies
+    // does not matter).
+    let above = |v: u32, from: u32| {
+        let (a, b) = (p[v as usize], p[from as usize]);
+        (0..3).map(|k| (a[k] - b[k]) * normal[k]).sum::<f32>()
+    };
     // Multi-source search from the border; each queued vertex carries its source.
     best.clear();
     let mut heap = BinaryHeap::new();
@@ -472,11 +529,15 @@ fn turning_border(
         heap.push(std::cmp::Reverse((0u32, v, i)));
     }
     let mut turned = vec![false; border.len()];
+    let mut rises = vec![false; border.len()];
     let turned_from = at_least_angle(normal, turn_deg);
     while let Some(std::cmp::Reverse((d_bits, v, source))) = heap.pop() {
         let d = f32::from_bits(d_bits);
         if best.distance[v as usize] < d {
             continue;
+        }
+        if !rises[source] && above(v, border[source]) > min_slope * d {
+            rises[source] = true;
         }
         // A source that has turned stays turned; its search goes on only to keep the other
         // sources' nearest vertices what they were.
@@ -498,7 +559,10 @@ fn turning_border(
             }
         }
     }
-    turned.iter().filter(|&&t| t).count()
+    Beyond {
+        turned: turned.iter().filter(|&&t| t).count(),
+        rises,
+    }
 }
 
 /// A test of whether a face normal is at least `turn_deg` from `normal` (unit), deciding as

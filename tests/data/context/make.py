@@ -203,6 +203,8 @@ def crossing_vessel(name, spacing, radius, azimuth_deg, elevation_deg, length=30
 
 blob("blob-s7", 7, (0.6, 0.6, 2.0))
 blob("blob-s11", 11, (0.4, 0.4, 1.2), flying=False)
+# Its inner corners hold chamfer strips the surface leaves outwards all round: dents, no caps.
+blob("blob-s30", 30, (0.45, 0.45, 3.0), flying=False)
 # A tumour-like blob on the neck's grid after 80 Laplace iterations by VTK: its terraces are
 # rounded off, while an oblique planar facet of the binary surface stays nearly flat (0.44 %
 # of the area, 71 degrees from z, alone in its direction, its normals spread by 0.65 degrees):
@@ -211,9 +213,14 @@ blob("blob-s4-l80", 4, (0.45, 0.45, 3.0), n=6, flying=False, axes_mm=(5.0, 12.0)
 tube("tube-along-z", (0.5, 0.5, 2.5), 4.0, "z", 40.0)
 tube("tube-along-x", (0.5, 0.5, 2.5), 4.0, "x", 30.0)
 tube("tube-along-z-thin", (0.4, 0.4, 2.0), 2.0, "z", 30.0)
+# Across the slices: its end discs, three slices tall, hold no vertex away from a chamfer.
+tube("tube-along-y", (0.8, 0.8, 2.5), 4.0, "y", 24.0)
 cylinder_cuboid("cylinder-cuboid-r12-s1.5-l30", (1.0, 1.0, 1.5), 12.0, 30)
 cylinder_cuboid("cylinder-cuboid-r24-s3-l50", (1.0, 1.0, 3.0), 24.0, 50)
 cylinder_cuboid("cylinder-cuboid-r15-s2-l0", (1.0, 1.0, 2.0), 15.0, 0)
+# The paper's radius on a finer grid, smoothed less and more.
+cylinder_cuboid("cylinder-cuboid-r18-s2.4-l20", (0.8, 0.8, 2.4), 18.0, 20)
+cylinder_cuboid("cylinder-cuboid-r18-s2.4-l40", (0.8, 0.8, 2.4), 18.0, 40)
 weak_sphere("sphere-quarter", (1.0, 1.0, 3.0), 0.25)
 weak_sphere("sphere-eighth", (1.0, 1.0, 3.0), 0.125)
 weak_sphere("sphere-cut-eighth", (1.0, 1.0, 3.0), 0.125, cut="flat")
