@@ -210,9 +210,11 @@ impl SampledFaces {
         unit64(sum)
     }
 
-    /// Up to [`SECOND_AXES_TRIED`] unit directions perpendicular to `a`, strongest first: the
-    /// peaks of the area of faces facing perpendicular to `a` by their angle around it, taken
-    /// modulo 90 degrees (a grid's walls face four ways 90 degrees apart).
+    /// Unit directions perpendicular to `a` that may be a grid's second axis: the (up to
+    /// [`SECOND_AXES_TRIED`]) peaks of the area of faces facing perpendicular to `a` by their
+    /// angle around it, taken modulo 90 degrees (a grid's walls face four ways 90 degrees
+    /// apart), strongest first, and the two peaks' bisector; then each of these turned by 45
+    /// degrees.
     fn around(&self, a: [f64; 3]) -> Vec<[f64; 3]> {
         let u = perpendicular(a);
         let v = cross64(a, u);
@@ -246,7 +248,10 @@ impl SampledFaces {
                 }
             }
         }
-        peaks
+        // Marching cubes cuts a grid cell's corner with a facet at 45 degrees to its walls: a
+        // thin tube's cross-section (a diamond of pixels) may have no wall facet at all, so
+        // each peak also stands for the axes 45 degrees from it.
+        let refined: Vec<f64> = peaks
             .into_iter()
             .map(|peak| {
                 // The circular mean of four times the angle of the faces near the peak.
@@ -258,15 +263,33 @@ impl SampledFaces {
                         s += w * r.sin();
                     }
                 }
-                let deg = if c == 0.0 && s == 0.0 {
+                if c == 0.0 && s == 0.0 {
                     peak
                 } else {
                     s.atan2(c).to_degrees() / 4.0
-                };
-                let (sin, cos) = deg.to_radians().sin_cos();
-                std::array::from_fn(|k| cos * u[k] + sin * v[k])
+                }
             })
-            .collect()
+            .collect();
+        // Corner facets of an anisotropic cell face mirror images of each other about the
+        // axes (the diamond-shaped section of a rod one voxel across): the axes bisect them.
+        let mut angles = refined.clone();
+        if let [p, q] = refined[..] {
+            let (s4, c4) = [p, q].iter().fold((0.0, 0.0), |(s, c), &d: &f64| {
+                let r = (4.0 * d).to_radians();
+                (s + r.sin(), c + r.cos())
+            });
+            if s4 != 0.0 || c4 != 0.0 {
+                angles.push(s4.atan2(c4).to_degrees() / 4.0);
+            }
+        }
+        let mut axes = Vec::with_capacity(2 * angles.len());
+        for offset in [0.0, 45.0] {
+            for &deg in &angles {
+                let (sin, cos) = (deg + offset).to_radians().sin_cos();
+                axes.push(std::array::from_fn(|k| cos * u[k] + sin * v[k]));
+            }
+        }
+        axes
     }
 }
 

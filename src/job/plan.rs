@@ -374,7 +374,7 @@ impl Plan {
 /// version alone does not change between such builds. 1: turned grids, the grid-aware
 /// automatic tau and `reaches_volume_edge` (issue 61). 2: flat regions filled from their
 /// flattest face within the growth limits, coplanar faces, rises and dents (issue 61's caps).
-pub const OUTPUT_REVISION: u32 = 2;
+pub const OUTPUT_REVISION: u32 = 3;
 
 /// Largest number of guard repair rounds.
 const MAX_GUARD_REPAIRS: usize = 20;

@@ -96,6 +96,8 @@ pub struct ContextSummary {
     /// Support share of the best other direction (at least 10 degrees from the estimate): how
     /// clearly the estimate stands out.
     pub axis_runner_up: Option<f64>,
+    /// Angle (degrees) between the estimate and that other direction.
+    pub axis_runner_up_deg: Option<f64>,
     /// The voxel size (mm along x, y, z, or along `grid_axes`) of the grid the mesh lies on,
     /// known or reconstructed: one value per axis, or the two it may be (h/2 and h steps not
     /// both seen).
@@ -134,6 +136,9 @@ pub struct ContextSummary {
 /// warns.
 pub const AXIS_DISAGREEMENT_DEG: f64 = 5.0;
 
+/// An estimated axis whose runner-up has at least this share of its support is a warning.
+pub const AXIS_CLOSE_RUNNER_UP: f64 = 0.5;
+
 /// Summarises a context analysis.
 pub fn context_summary(ctx: &Context, n_vertices: usize) -> ContextSummary {
     use crate::analysis::StackAxis;
@@ -143,13 +148,14 @@ pub fn context_summary(ctx: &Context, n_vertices: usize) -> ContextSummary {
         Some(StackAxis::TooWeak { best_share }) => Some(best_share),
         None => None,
     };
-    let (axis_evidence, axis_runner_up) = match ctx.estimated_axis {
+    let (axis_evidence, axis_runner_up, axis_runner_up_deg) = match ctx.estimated_axis {
         Some(StackAxis::Found {
             evidence,
             runner_up,
+            runner_up_deg,
             ..
-        }) => (Some(evidence), Some(runner_up)),
-        _ => (None, None),
+        }) => (Some(evidence), Some(runner_up), Some(runner_up_deg)),
+        _ => (None, None, None),
     };
     let axis_source = ctx.axis_source.name();
     let n_staircase_vertices = ctx.staircase.as_ref().map_or(0, |s| s.n_staircase());
@@ -179,6 +185,26 @@ pub fn context_summary(ctx: &Context, n_vertices: usize) -> ContextSummary {
             ));
         }
     }
+    // Used as the axis with another direction close behind: a tube along the slices off its
+    // grid shows its walls, not slices, and the estimate may be 90 degrees off.
+    if let (
+        Some(StackAxis::Found {
+            confidence,
+            runner_up,
+            runner_up_deg,
+            ..
+        }),
+        Some(a),
+        AxisSource::Estimated,
+    ) = (ctx.estimated_axis, ctx.axis, ctx.axis_source)
+    {
+        if runner_up >= AXIS_CLOSE_RUNNER_UP * confidence {
+            warnings.push(format!(
+                "the stack axis ({:.3}, {:.3}, {:.3}) is estimated from {:.2} % of the area, but a direction {runner_up_deg:.0} degrees away has {:.2} %: the larger flat parts may be the walls of a structure running along the slices, not slices; give the axis or the voxel size if they are known",
+                a[0], a[1], a[2], 100.0 * confidence, 100.0 * runner_up
+            ));
+        }
+    }
     let w = ctx.weights.as_slice();
     let weights = WeightStats {
         min: w.iter().copied().fold(f32::INFINITY, f32::min),
@@ -193,6 +219,7 @@ pub fn context_summary(ctx: &Context, n_vertices: usize) -> ContextSummary {
         axis_confidence,
         axis_evidence,
         axis_runner_up,
+        axis_runner_up_deg,
         voxel_mm: ctx
             .grid_mm
             .map(|g| g.map(|(lo, hi)| if lo == hi { vec![lo] } else { vec![lo, hi] })),

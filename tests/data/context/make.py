@@ -35,7 +35,7 @@ def grid(shape, spacing):
     return x, y, z
 
 
-def surface(img, discrete=True, flying=False, smooth_iterations=0):
+def surface(img, discrete=True, flying=False, smooth_iterations=0, sinc_iterations=0):
     if discrete:
         mc = vtk.vtkDiscreteFlyingEdges3D() if flying else vtk.vtkDiscreteMarchingCubes()
         mc.SetValue(0, 1)
@@ -55,6 +55,17 @@ def surface(img, discrete=True, flying=False, smooth_iterations=0):
         s.FeatureEdgeSmoothingOff()
         s.BoundarySmoothingOn()
         s.SetConvergence(0.0)
+        s.Update()
+        out = s.GetOutput()
+    if sinc_iterations:
+        # Windowed sinc (pass band 0.1), the smoothing segmentation tools apply at export.
+        s = vtk.vtkWindowedSincPolyDataFilter()
+        s.SetInputData(out)
+        s.SetNumberOfIterations(sinc_iterations)
+        s.SetPassBand(0.1)
+        s.NormalizeCoordinatesOn()
+        s.FeatureEdgeSmoothingOff()
+        s.BoundarySmoothingOn()
         s.Update()
         out = s.GetOutput()
     clean = vtk.vtkPolyDataNormals()  # outward, consistent orientation
@@ -101,7 +112,7 @@ def blob(name, seed, spacing, n=12, flying=True, axes_mm=(3.0, 8.0), smooth_iter
     )
 
 
-def tube(name, spacing, radius, axis, length, smooth_iterations=0):
+def tube(name, spacing, radius, axis, length, smooth_iterations=0, sinc_iterations=0):
     """A straight tube with both ends cut flat inside the volume: two caps along its axis."""
     size = [length + 10.0, 2 * radius + 10.0, 2 * radius + 10.0]
     order = {"x": (0, 1, 2), "y": (1, 0, 2), "z": (2, 1, 0)}[axis]
@@ -113,12 +124,16 @@ def tube(name, spacing, radius, axis, length, smooth_iterations=0):
     p = [x, y, z]
     a, b, c = (p[o] - ext[o] / 2 for o in order)
     inside = (b**2 + c**2 <= radius**2) & (np.abs(a) <= length / 2)
-    poly = surface(image(inside.astype(np.uint8), spacing), smooth_iterations=smooth_iterations)
+    poly = surface(
+        image(inside.astype(np.uint8), spacing),
+        smooth_iterations=smooth_iterations,
+        sinc_iterations=sinc_iterations,
+    )
     n = [0, 0, 0]
     n[order[0]] = 1
     write(
         name, poly, grid_mm=list(spacing), stack_axis=[0, 0, 1],
-        caps=[n, [-v for v in n]], smoothed=smooth_iterations,
+        caps=[n, [-v for v in n]], smoothed=smooth_iterations + sinc_iterations,
     )
 
 
@@ -213,6 +228,11 @@ blob("blob-s4-l80", 4, (0.45, 0.45, 3.0), n=6, flying=False, axes_mm=(5.0, 12.0)
 tube("tube-along-z", (0.5, 0.5, 2.5), 4.0, "z", 40.0)
 tube("tube-along-x", (0.5, 0.5, 2.5), 4.0, "x", 30.0)
 tube("tube-along-z-thin", (0.4, 0.4, 2.0), 2.0, "z", 30.0)
+# Two pixels across: its section is a diamond of corner facets, with no wall facing a grid axis.
+tube("tube-along-z-diamond", (0.5, 0.5, 2.5), 1.0, "z", 20.0)
+# Along the slices, smoothed at export: off its grid, its long flat walls outweigh the end discs.
+tube("tube-along-z-sinc5", (0.45, 0.45, 3.0), 7.0, "z", 60.0, sinc_iterations=5)
+tube("tube-along-z-sinc10", (0.45, 0.45, 3.0), 7.0, "z", 60.0, sinc_iterations=10)
 # Across the slices: its end discs, three slices tall, hold no vertex away from a chamfer.
 tube("tube-along-y", (0.8, 0.8, 2.5), 4.0, "y", 24.0)
 cylinder_cuboid("cylinder-cuboid-r12-s1.5-l30", (1.0, 1.0, 1.5), 12.0, 30)
