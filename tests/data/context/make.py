@@ -35,6 +35,16 @@ def grid(shape, spacing):
     return x, y, z
 
 
+def smoothed(smoother, poly, iterations):
+    """`poly` after `iterations` of a VTK smoothing filter (features and boundary smoothed too)."""
+    smoother.SetInputData(poly)
+    smoother.SetNumberOfIterations(iterations)
+    smoother.FeatureEdgeSmoothingOff()
+    smoother.BoundarySmoothingOn()
+    smoother.Update()
+    return smoother.GetOutput()
+
+
 def surface(img, discrete=True, flying=False, smooth_iterations=0, sinc_iterations=0):
     if discrete:
         mc = vtk.vtkDiscreteFlyingEdges3D() if flying else vtk.vtkDiscreteMarchingCubes()
@@ -49,25 +59,15 @@ def surface(img, discrete=True, flying=False, smooth_iterations=0, sinc_iteratio
     if smooth_iterations:
         # Uniform Laplace, lambda 0.5: another implementation than destair's.
         s = vtk.vtkSmoothPolyDataFilter()
-        s.SetInputData(out)
-        s.SetNumberOfIterations(smooth_iterations)
         s.SetRelaxationFactor(0.5)
-        s.FeatureEdgeSmoothingOff()
-        s.BoundarySmoothingOn()
         s.SetConvergence(0.0)
-        s.Update()
-        out = s.GetOutput()
+        out = smoothed(s, out, smooth_iterations)
     if sinc_iterations:
         # Windowed sinc (pass band 0.1), the smoothing segmentation tools apply at export.
         s = vtk.vtkWindowedSincPolyDataFilter()
-        s.SetInputData(out)
-        s.SetNumberOfIterations(sinc_iterations)
         s.SetPassBand(0.1)
         s.NormalizeCoordinatesOn()
-        s.FeatureEdgeSmoothingOff()
-        s.BoundarySmoothingOn()
-        s.Update()
-        out = s.GetOutput()
+        out = smoothed(s, out, sinc_iterations)
     clean = vtk.vtkPolyDataNormals()  # outward, consistent orientation
     clean.SetInputData(out)
     clean.ConsistencyOn()
