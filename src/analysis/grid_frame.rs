@@ -248,10 +248,7 @@ impl SampledFaces {
                 }
             }
         }
-        // Marching cubes cuts a grid cell's corner with a facet at 45 degrees to its walls: a
-        // thin tube's cross-section (a diamond of pixels) may have no wall facet at all, so
-        // each peak also stands for the axes 45 degrees from it.
-        let refined: Vec<f64> = peaks
+        let mut peak_deg: Vec<f64> = peaks
             .into_iter()
             .map(|peak| {
                 // The circular mean of four times the angle of the faces near the peak.
@@ -272,19 +269,21 @@ impl SampledFaces {
             .collect();
         // Corner facets of an anisotropic cell face mirror images of each other about the
         // axes (the diamond-shaped section of a rod one voxel across): the axes bisect them.
-        let mut angles = refined.clone();
-        if let [p, q] = refined[..] {
+        if let [p, q] = peak_deg[..] {
             let (s4, c4) = [p, q].iter().fold((0.0, 0.0), |(s, c), &d: &f64| {
                 let r = (4.0 * d).to_radians();
                 (s + r.sin(), c + r.cos())
             });
             if s4 != 0.0 || c4 != 0.0 {
-                angles.push(s4.atan2(c4).to_degrees() / 4.0);
+                peak_deg.push(s4.atan2(c4).to_degrees() / 4.0);
             }
         }
-        let mut axes = Vec::with_capacity(2 * angles.len());
+        // Marching cubes cuts a grid cell's corner with a facet at 45 degrees to its walls: a
+        // thin tube's cross-section (a diamond of pixels) may have no wall facet at all, so
+        // each angle also stands for the axes 45 degrees from it.
+        let mut axes = Vec::with_capacity(2 * peak_deg.len());
         for offset in [0.0, 45.0] {
-            for &deg in &angles {
+            for &deg in &peak_deg {
                 let (sin, cos) = (deg + offset).to_radians().sin_cos();
                 axes.push(std::array::from_fn(|k| cos * u[k] + sin * v[k]));
             }

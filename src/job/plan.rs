@@ -374,6 +374,7 @@ impl Plan {
 /// version alone does not change between such builds. 1: turned grids, the grid-aware
 /// automatic tau and `reaches_volume_edge` (issue 61). 2: flat regions filled from their
 /// flattest face within the growth limits, coplanar faces, rises and dents (issue 61's caps).
+/// 3: turned grids of tubes with only corner facets, and ties in the axis estimate.
 pub const OUTPUT_REVISION: u32 = 3;
 
 /// Largest number of guard repair rounds.
