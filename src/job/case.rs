@@ -140,7 +140,7 @@ pub fn process_case(plan: &Plan, case: LoadedCase) -> CaseOutput {
     for pair in all.windows(2) {
         if pair[0].structure == pair[1].structure {
             case_errors.push(format!(
-                "structure {:?} comes from both {} and {}; rename one (a [labels] entry names labels)",
+                "structure {:?} comes from both {} and {}; rename one (a [labels] entry names labels: \"2\" for value 2 in every layer, \"1:2\" for value 2 in layer 1)",
                 pair[0].structure,
                 origin(&pair[0]),
                 origin(&pair[1])
@@ -363,6 +363,10 @@ struct Surfaces {
 /// Where a structure's file came from, for messages.
 fn origin(f: &LoadedFile) -> String {
     match &f.source {
+        // The layer only where there can be several (a .seg.nrrd's layers reuse values).
+        Some(s) if s.layer > 0 => {
+            format!("label {} (layer {}) of {}", s.label, s.layer, s.label_map)
+        }
         Some(s) => format!("label {} of {}", s.label, s.label_map),
         None => f.file.clone(),
     }

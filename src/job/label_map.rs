@@ -251,10 +251,9 @@ fn mb(bytes: u64) -> u64 {
 
 /// A label's name as a structure: `[labels]` first, then the file's own (Slicer's segment
 /// names), made safe as a file stem.
-fn structure_name(plan: &Plan, value: i64, file_name: &str) -> String {
+fn structure_name(plan: &Plan, (layer, value): (usize, i64), file_name: &str) -> String {
     let name = plan
-        .label_names
-        .get(&value)
+        .label_name(layer, value)
         .map_or(file_name, String::as_str);
     crate::volume::label_file_stem(name, value)
 }
@@ -275,8 +274,28 @@ pub fn label_structures(
         let names: Vec<String> = layer
             .labels
             .iter()
-            .map(|l| structure_name(plan, l.value, &l.name))
+            .map(|l| structure_name(plan, (layer_index, l.value), &l.name))
             .collect();
+        // The names the file itself gives (Slicer's segments), where [labels] says otherwise.
+        let file_names: Vec<Option<String>> = (layer.labels.iter())
+            .map(|l| {
+                (map.segments.iter())
+                    .any(|seg| {
+                        seg.layer == layer_index && seg.value == l.value && seg.name == l.name
+                    })
+                    .then(|| l.name.clone())
+            })
+            .collect();
+        for (l, file_name) in layer.labels.iter().zip(&file_names) {
+            if let (Some(given), Some(own)) = (plan.label_name(layer_index, l.value), file_name) {
+                if given != own {
+                    warnings.push(format!(
+                        "[labels] names label {} (layer {layer_index}) of {} {given:?}, but the file names it {own:?}; {given:?} is used",
+                        l.value, loaded.file
+                    ));
+                }
+            }
+        }
         // How each label is extracted (the background as [defaults] says).
         let smoothing: Vec<LabelSmoothing> = std::iter::once(plan.default_settings().extraction)
             .chain(names.iter().map(|n| plan.settings_for(n).extraction))
@@ -337,6 +356,7 @@ pub fn label_structures(
             entries.push(LabelEntry {
                 value: label.value,
                 structure: name.clone(),
+                file_name: file_names[s.label as usize - 1].clone(),
                 layer: layer_index,
                 n_voxels: label.n_voxels,
             });
@@ -377,11 +397,14 @@ pub fn label_structures(
             });
         }
     }
-    for (value, name) in &plan.label_names {
-        if !entries.iter().any(|e| e.value == *value) {
+    for (key, name) in &plan.label_names {
+        if !entries.iter().any(|e| key.names(e.layer, e.value)) {
+            let layer = key
+                .layer
+                .map_or(String::new(), |l| format!(" in layer {l}"));
             warnings.push(format!(
-                "[labels] names {value} = {name:?}, but no voxel of {} holds {value}",
-                loaded.file
+                "[labels] names {key} = {name:?}, but no voxel of {}{layer} holds {}",
+                loaded.file, key.value
             ));
         }
     }

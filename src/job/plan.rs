@@ -28,7 +28,7 @@ pub struct Plan {
     /// File-name globs that select label maps; `None` takes every label-map file.
     pub label_map_patterns: Option<Vec<glob::Pattern>>,
     /// Structure names for label values, from `[labels]`.
-    pub label_names: std::collections::BTreeMap<i64, String>,
+    pub label_names: std::collections::BTreeMap<LabelKey, String>,
     /// World convention of surfaces made from label maps.
     pub space: crate::volume::Space,
     pub output_root: PathBuf,
@@ -155,14 +155,14 @@ impl Plan {
         };
         let mut label_names = std::collections::BTreeMap::new();
         for (value, name) in &config.labels {
-            let v: i64 = value.trim().parse().map_err(|_| {
+            let v = LabelKey::parse(value).ok_or_else(|| {
                 invalid(format!(
-                    "[labels] {value:?} = {name:?}: the key must be a label value (a whole number)"
+                    "[labels] {value:?} = {name:?}: the key must be a label value (a whole number), or a layer and a value as \"1:2\" (layer 1, counted from 0, value 2)"
                 ))
             })?;
-            if v == 0 {
+            if v.value == 0 {
                 return Err(invalid(format!(
-                    "[labels] 0 = {name:?}: label 0 is background and has no surface"
+                    "[labels] {v} = {name:?}: label 0 is background and has no surface"
                 )));
             }
             if name.is_empty()
@@ -346,6 +346,16 @@ impl Plan {
         blake3::hash(tables.as_bytes()).to_hex().to_string()
     }
 
+    /// The structure name `[labels]` gives label `value` of layer `layer`: a key naming that
+    /// layer first, then one naming the value in every layer.
+    pub fn label_name(&self, layer: usize, value: i64) -> Option<&String> {
+        (self.label_names.get(&LabelKey {
+            layer: Some(layer),
+            value,
+        }))
+        .or_else(|| self.label_names.get(&LabelKey { layer: None, value }))
+    }
+
     /// Hash of everything in the plan that changes outputs for given settings, with the
     /// program version and [`OUTPUT_REVISION`]: part of each case's resume key.
     pub fn output_fingerprint(&self, settings: &[(String, StructureSettings)]) -> String {
@@ -368,13 +378,58 @@ impl Plan {
     }
 }
 
+/// A `[labels]` key: a label value in every layer (`"2"`), or in one layer (`"1:2"`: layer 1,
+/// counted from 0 as the report's `layer` and Slicer's `Segment<N>_Layer` are, value 2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub struct LabelKey {
+    pub layer: Option<usize>,
+    pub value: i64,
+}
+
+impl LabelKey {
+    /// The key as written in `[labels]`, or None when it is neither form.
+    pub fn parse(key: &str) -> Option<LabelKey> {
+        let (layer, value) = match key.split_once(':') {
+            Some((layer, value)) => (Some(layer.trim().parse().ok()?), value),
+            None => (None, key),
+        };
+        Some(LabelKey {
+            layer,
+            value: value.trim().parse().ok()?,
+        })
+    }
+
+    /// Whether the key names `value` of layer `layer`.
+    pub fn names(&self, layer: usize, value: i64) -> bool {
+        self.value == value && self.layer.is_none_or(|l| l == layer)
+    }
+}
+
+impl std::fmt::Display for LabelKey {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.layer {
+            Some(layer) => write!(f, "{layer}:{}", self.value),
+            None => write!(f, "{}", self.value),
+        }
+    }
+}
+
+// Keys are written as in the configuration (a plain value as before, so a resume key made
+// before layers could be addressed is unchanged).
+impl serde::Serialize for LabelKey {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.collect_str(self)
+    }
+}
+
 /// Raised whenever a change makes destair write something else for the same input and
 /// settings (an analysis or a default changed), so that a rerun redoes the cases an earlier
 /// build finished instead of mixing its results with the new ones in one cohort. The package
 /// version alone does not change between such builds. 1: turned grids, the grid-aware
 /// automatic tau and `reaches_volume_edge` (issue 61). 2: flat regions filled from their
 /// flattest face within the growth limits, coplanar faces, rises and dents (issue 61's caps).
-/// 3: turned grids of tubes with only corner facets, and ties in the axis estimate.
+/// 3: turned grids of tubes with only corner facets, ties in the axis estimate, the file's
+/// label names in reports and the NIfTI sform/qform warning.
 pub const OUTPUT_REVISION: u32 = 3;
 
 /// Largest number of guard repair rounds.

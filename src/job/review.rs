@@ -50,7 +50,7 @@ pub fn review(plan: &Plan, found: &Discovery) -> Review {
         names.extend(plan.label_names.values().cloned());
         for path in &label_maps {
             for seg in crate::volume::declared_segments(path) {
-                if !plan.label_names.contains_key(&seg.value) {
+                if plan.label_name(seg.layer, seg.value).is_none() {
                     names.insert(seg.name);
                 }
             }

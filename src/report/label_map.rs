@@ -59,6 +59,8 @@ pub struct LabelMapInfo {
 pub struct LabelEntry {
     pub value: i64,
     pub structure: String,
+    /// The name the file gives the label (Slicer's segment name), when it gives one.
+    pub file_name: Option<String>,
     pub layer: usize,
     pub n_voxels: u64,
 }

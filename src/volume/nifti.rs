@@ -1,7 +1,8 @@
 //! NIfTI-1 label maps (`.nii`, `.nii.gz`). The 348-byte header is decoded by the `nifti` crate
 //! (both byte orders); the voxels are read here, from a memory map or a gzip stream, after the
-//! header's sizes are checked against the data. Geometry from the sform when its code is set,
-//! else the qform, else the plain pixdim scaling (with a warning); NIfTI's world is RAS.
+//! header's sizes are checked against the data. Geometry from the sform when its code is set
+//! (with a warning when a set qform places the grid elsewhere), else the qform, else the plain
+//! pixdim scaling (with a warning); NIfTI's world is RAS.
 
 use super::{
     gunzip_overlapped, voxel_count, Grid, KeyHistogram, LabelMap, LabelMapHeader, LabelMapLimits,
@@ -33,20 +34,11 @@ fn voxel_type(code: i16) -> Result<VoxelType, String> {
 /// unit quaternion (nibabel refuses beyond 3 float32 epsilons; this is a little wider).
 const QUATERNION_SLACK: f64 = 1e-6;
 
-/// The grid of a NIfTI header (RAS), and a warning when it had to be guessed. A qform whose
-/// quaternion is longer than 1 is no rotation (its grid would scale every voxel), and voxel
-/// sizes (pixdim) are positive in NIfTI (the mirror goes in qfac): both are refused.
+/// The grid of a NIfTI header (RAS), and a warning when it had to be guessed or when the
+/// sform and qform place it differently. A qform whose quaternion is longer than 1 is no
+/// rotation (its grid would scale every voxel), and voxel sizes (pixdim) are positive in NIfTI
+/// (the mirror goes in qfac): both are refused.
 fn grid_of(h: &nifti::NiftiHeader) -> Result<(Grid, Option<String>), String> {
-    let p = |k: usize| h.pixdim[k] as f64;
-    let positive_pixdims = || -> Result<(), String> {
-        match (1..=3).find(|&k| p(k).is_nan() || p(k) <= 0.0) {
-            Some(k) => Err(format!(
-                "pixdim[{k}] = {}: NIfTI voxel sizes must be positive (a mirrored axis is qfac, pixdim[0])",
-                crate::units::readable(p(k))
-            )),
-            None => Ok(()),
-        }
-    };
     if h.sform_code > 0 {
         let r = [h.srow_x, h.srow_y, h.srow_z].map(|row| row.map(|x| x as f64));
         let grid = Grid {
@@ -58,42 +50,104 @@ fn grid_of(h: &nifti::NiftiHeader) -> Result<(Grid, Option<String>), String> {
             origin: [r[0][3], r[1][3], r[2][3]],
             space: Space::Ras,
         };
-        return Ok((grid, None));
+        // Readers differ in which form they take (nibabel the sform; ITK, and so 3D Slicer,
+        // may take the qform): a disagreement places the surfaces elsewhere there.
+        let warning = match (h.qform_code > 0).then(|| qform_grid(h)) {
+            Some(Ok(q)) => disagreement(&grid, &q, dims_of(h)),
+            _ => None,
+        };
+        return Ok((grid, warning));
     }
     if h.qform_code > 0 {
-        let (b, c, d) = (h.quatern_b as f64, h.quatern_c as f64, h.quatern_d as f64);
-        let length2 = b * b + c * c + d * d;
-        if length2.is_nan() || length2 > 1.0 + QUATERNION_SLACK {
-            return Err(format!(
-                "the qform quaternion (b, c, d) = ({}, {}, {}) is longer than 1 (|q|^2 = {}): not a rotation, so the voxel grid cannot be placed",
-                crate::units::readable(b),
-                crate::units::readable(c),
-                crate::units::readable(d),
-                crate::units::readable(length2)
-            ));
-        }
-        positive_pixdims()?;
-        let a = (1.0 - length2).max(0.0).sqrt();
-        let rot = super::grid::quaternion_rotation(a, b, c, d);
-        let qfac = if h.pixdim[0] < 0.0 { -1.0 } else { 1.0 };
-        let scale = [p(1), p(2), qfac * p(3)];
-        let mut matrix = [[0.0; 3]; 3];
-        for r in 0..3 {
-            for col in 0..3 {
-                matrix[r][col] = rot[r][col] * scale[col];
-            }
-        }
-        let grid = Grid {
-            matrix,
-            origin: [h.quatern_x as f64, h.quatern_y as f64, h.quatern_z as f64],
-            space: Space::Ras,
-        };
-        return Ok((grid, None));
+        return Ok((qform_grid(h)?, None));
     }
-    positive_pixdims()?;
+    positive_pixdims(h)?;
+    let p = |k: usize| h.pixdim[k] as f64;
     Ok((
         Grid::axis_aligned([p(1), p(2), p(3)], [0.0; 3], Space::Ras),
         Some("neither sform nor qform is set: the grid is pixdim-scaled at the origin, orientation unknown".into()),
+    ))
+}
+
+/// Voxel sizes (pixdim 1-3) must be positive.
+fn positive_pixdims(h: &nifti::NiftiHeader) -> Result<(), String> {
+    let p = |k: usize| h.pixdim[k] as f64;
+    match (1..=3).find(|&k| p(k).is_nan() || p(k) <= 0.0) {
+        Some(k) => Err(format!(
+            "pixdim[{k}] = {}: NIfTI voxel sizes must be positive (a mirrored axis is qfac, pixdim[0])",
+            crate::units::readable(p(k))
+        )),
+        None => Ok(()),
+    }
+}
+
+/// The grid the qform gives (quaternion, pixdim, qfac, offset).
+fn qform_grid(h: &nifti::NiftiHeader) -> Result<Grid, String> {
+    let p = |k: usize| h.pixdim[k] as f64;
+    let (b, c, d) = (h.quatern_b as f64, h.quatern_c as f64, h.quatern_d as f64);
+    let length2 = b * b + c * c + d * d;
+    if length2.is_nan() || length2 > 1.0 + QUATERNION_SLACK {
+        return Err(format!(
+            "the qform quaternion (b, c, d) = ({}, {}, {}) is longer than 1 (|q|^2 = {}): not a rotation, so the voxel grid cannot be placed",
+            crate::units::readable(b),
+            crate::units::readable(c),
+            crate::units::readable(d),
+            crate::units::readable(length2)
+        ));
+    }
+    positive_pixdims(h)?;
+    let a = (1.0 - length2).max(0.0).sqrt();
+    let rot = super::grid::quaternion_rotation(a, b, c, d);
+    let qfac = if h.pixdim[0] < 0.0 { -1.0 } else { 1.0 };
+    let scale = [p(1), p(2), qfac * p(3)];
+    let mut matrix = [[0.0; 3]; 3];
+    for r in 0..3 {
+        for col in 0..3 {
+            matrix[r][col] = rot[r][col] * scale[col];
+        }
+    }
+    Ok(Grid {
+        matrix,
+        origin: [h.quatern_x as f64, h.quatern_y as f64, h.quatern_z as f64],
+        space: Space::Ras,
+    })
+}
+
+/// Voxel centres the two forms may place apart by float32 storage alone (a share of the
+/// smallest voxel spacing): beyond it they are two placements.
+const FORMS_AGREE_VOXELS: f64 = 0.01;
+
+/// A warning naming both forms when the sform and qform put a corner voxel of the `dims`
+/// volume more than [`FORMS_AGREE_VOXELS`] apart.
+fn disagreement(sform: &Grid, qform: &Grid, dims: [usize; 3]) -> Option<String> {
+    let corners = (0..8).map(|c: usize| {
+        std::array::from_fn(|k| {
+            if c >> k & 1 == 1 {
+                dims[k].saturating_sub(1) as f64
+            } else {
+                0.0
+            }
+        })
+    });
+    let (apart, corner) = corners
+        .map(|ijk: [f64; 3]| {
+            let (a, b) = (sform.world(ijk), qform.world(ijk));
+            (
+                (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt(),
+                ijk,
+            )
+        })
+        .fold((0.0, [0.0; 3]), |m, x| if x.0 > m.0 { x } else { m });
+    let smallest = (sform.spacing().into_iter()).fold(f64::INFINITY, f64::min);
+    if apart.is_nan() || apart <= FORMS_AGREE_VOXELS * smallest {
+        return None;
+    }
+    let mm = |v: [f64; 3]| format!("({:.3}, {:.3}, {:.3})", v[0], v[1], v[2]);
+    Some(format!(
+        "the sform and the qform place the grid differently: voxel ({}, {}, {}) at {} mm by the sform, {} mm by the qform ({apart:.3} mm apart, RAS); the sform is used (as nibabel does; ITK-based tools such as 3D Slicer may take the qform)",
+        corner[0], corner[1], corner[2],
+        mm(sform.world(corner)),
+        mm(qform.world(corner))
     ))
 }
 

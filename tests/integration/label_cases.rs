@@ -207,6 +207,128 @@ fn labels_become_structures_smoothed_with_the_header_geometry() {
     }
 }
 
+/// Two overlapping layers of a `.seg.nrrd` (a liver with a cyst in layer 0, a tumour inside the
+/// liver in layer 1), both value 1 for liver and tumour, named by Slicer's segments.
+fn two_layer_seg_nrrd(path: &Path) {
+    let dims = [20, 20, 8];
+    let grid = Grid {
+        matrix: [[0.8, 0.0, 0.0], [0.0, 0.8, 0.0], [0.0, 0.0, 2.5]],
+        origin: [0.0, 0.0, 0.0],
+        space: Space::Lps,
+    };
+    let at = |i: usize, j: usize, k: usize| i + dims[0] * (j + dims[1] * k);
+    let mut layers = [vec![0i64; 20 * 20 * 8], vec![0i64; 20 * 20 * 8]];
+    for k in 2..6 {
+        for j in 4..18 {
+            for i in 4..18 {
+                layers[0][at(i, j, k)] = if i >= 15 && j >= 15 { 2 } else { 1 };
+                if (8..13).contains(&i) && (8..13).contains(&j) && k < 5 {
+                    layers[1][at(i, j, k)] = 1;
+                }
+            }
+        }
+    }
+    let volumes: Vec<LabelVolume> = layers
+        .into_iter()
+        .map(|v| LabelVolume::from_values(dims, grid, v.into_iter()).unwrap())
+        .collect();
+    let segment = |name: &str, value, layer| Segment {
+        name: name.into(),
+        value,
+        layer,
+    };
+    let segments = [
+        segment("liver parenchyma", 1, 0),
+        segment("cyst", 2, 0),
+        segment("tumor", 1, 1),
+    ];
+    write(path, &nrrd::encode(&volumes, &segments, true).unwrap());
+}
+
+#[test]
+fn two_layers_of_a_seg_nrrd_by_their_names_or_by_layer() {
+    let tmp = tempfile::tempdir().unwrap();
+    two_layer_seg_nrrd(&tmp.path().join("cases/a/seg.seg.nrrd"));
+    let head = "[input]\nroots = [\"cases\"]\ncase_depth = 1\n[output]\nroot = \"out\"\npictures = false\nhtml = false\n";
+    // The file's names alone: value 1 of each layer is its own structure.
+    let cfg = config(tmp.path(), head);
+    destair_ok(&["run", cfg.to_str().unwrap()]);
+    let r = report(tmp.path(), "a");
+    assert_eq!(r["status"], "ok", "{r}");
+    for name in ["liver parenchyma", "cyst", "tumor"] {
+        structure(&r, name);
+    }
+    // A plain value names it in every layer: two structures of one name, which fails the case
+    // with the layers said and the way out.
+    std::fs::remove_dir_all(tmp.path().join("out")).unwrap();
+    let cfg = config(tmp.path(), &format!("{head}[labels]\n1 = \"spleen\"\n"));
+    let out = destair(&["run", cfg.to_str().unwrap()]);
+    assert!(!out.status.success());
+    let err = stderr(&out);
+    assert!(
+        err.contains("label 1 of seg.seg.nrrd and label 1 (layer 1) of seg.seg.nrrd")
+            && err.contains("\"1:2\" for value 2 in layer 1"),
+        "{err}"
+    );
+    // Layer and value: each named; a name the file gives otherwise is a warning that says both,
+    // and the file's name stays in the report; a key no voxel matches is a warning.
+    std::fs::remove_dir_all(tmp.path().join("out")).unwrap();
+    let labels = "[labels]\n\"0:1\" = \"liver\"\n\"1:1\" = \"tumor\"\n\"3:7\" = \"duct\"\n";
+    let cfg = config(tmp.path(), &format!("{head}{labels}"));
+    destair_ok(&["run", cfg.to_str().unwrap()]);
+    let r = report(tmp.path(), "a");
+    assert_eq!(r["status"], "ok", "{r}");
+    let map = &r["label_maps"][0];
+    let entry = |layer: u64, value: i64| {
+        map["labels"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|e| e["layer"] == layer && e["value"] == value)
+            .unwrap_or_else(|| panic!("no label {value} of layer {layer}: {map}"))
+    };
+    assert_eq!(entry(0, 1)["structure"], "liver");
+    assert_eq!(entry(0, 1)["file_name"], "liver parenchyma");
+    assert_eq!(entry(0, 2)["structure"], "cyst");
+    assert_eq!(entry(1, 1)["structure"], "tumor");
+    assert_eq!(entry(1, 1)["file_name"], "tumor");
+    let warnings: Vec<&str> = map["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_str().unwrap())
+        .collect();
+    assert!(
+        warnings.iter().any(|w| w.contains(
+            "names label 1 (layer 0) of seg.seg.nrrd \"liver\", but the file names it \"liver parenchyma\""
+        )),
+        "{warnings:?}"
+    );
+    assert!(
+        warnings
+            .iter()
+            .any(|w| w.contains("3:7 = \"duct\", but no voxel of seg.seg.nrrd in layer 3 holds 7")),
+        "{warnings:?}"
+    );
+    // Only where the names differ: the tumour's name agrees.
+    assert_eq!(
+        warnings
+            .iter()
+            .filter(|w| w.contains("but the file names it"))
+            .count(),
+        1
+    );
+    // A key that is neither form is refused with the forms it may take.
+    let cfg = config(tmp.path(), &format!("{head}[labels]\n\"a:1\" = \"x\"\n"));
+    let out = destair(&["check", cfg.to_str().unwrap()]);
+    assert!(!out.status.success());
+    assert!(
+        stderr(&out).contains("\"1:2\" (layer 1, counted from 0, value 2)"),
+        "{}",
+        stderr(&out)
+    );
+}
+
 /// A 3-label volume on a mirrored grid (NIfTI's qfac = -1 kind) in RAS.
 fn mirrored_volume() -> LabelVolume {
     let dims = [24, 20, 10];

@@ -111,6 +111,36 @@ fn qform_only_nifti_gives_the_same_grid_as_its_sform() {
 }
 
 #[test]
+fn sform_and_qform_that_disagree_are_a_warning_naming_both() {
+    let mut rng = fastrand::Rng::with_seed(9);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("q.nii");
+    for round in 0..10 {
+        let v = random_volume(&mut rng, Space::Ras);
+        let mut bytes = nifti::encode(&v, false).unwrap();
+        // Both forms as written: they agree (float32 storage alone), no warning.
+        std::fs::write(&path, &bytes).unwrap();
+        let got = read_label_map(&path, Space::Ras).unwrap();
+        assert!(got.warnings.is_empty(), "{round}: {:?}", got.warnings);
+        // The qform's offset (qoffset_x, bytes 268-271) moved by 5 mm: the sform still places
+        // the grid, and the warning names both placements.
+        let at = 268;
+        let x = f32::from_le_bytes(bytes[at..at + 4].try_into().unwrap());
+        bytes[at..at + 4].copy_from_slice(&(x + 5.0).to_le_bytes());
+        std::fs::write(&path, &bytes).unwrap();
+        let got = read_label_map(&path, Space::Ras).unwrap();
+        assert_same_grid(&got.layers[0].grid, &v.grid, 1e-4);
+        let w = got.warnings.join("; ");
+        assert!(
+            w.contains("the sform and the qform place the grid differently")
+                && w.contains("5.000 mm apart")
+                && w.contains("the sform is used"),
+            "{round}: {w}"
+        );
+    }
+}
+
+#[test]
 fn slicer_segments_name_labels_and_layers_hold_overlaps() {
     let dir = tempfile::tempdir().unwrap();
     let g = Grid::axis_aligned([0.5, 0.5, 2.0], [1.0, 2.0, 3.0], Space::Lps);
