@@ -33,9 +33,20 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         .flat_map(|c| c.meshes.iter().map(|(n, _)| n.as_str()))
         .collect();
     let n_label_maps: usize = found.cases.iter().map(|c| c.label_maps.len()).sum();
+    // Names of label structures known before the maps are read: [labels] and the segment
+    // names of the maps' headers.
+    let mut label_names: std::collections::BTreeSet<String> = Default::default();
     if n_label_maps > 0 {
-        names.extend(plan.label_names.values().map(String::as_str));
+        label_names.extend(plan.label_names.values().cloned());
+        for path in found.cases.iter().flat_map(|c| &c.label_maps) {
+            for seg in destair::volume::declared_segments(path) {
+                if plan.label_name(seg.layer, seg.value).is_none() {
+                    label_names.insert(seg.name);
+                }
+            }
+        }
     }
+    names.extend(label_names.iter().map(String::as_str));
     println!(
         "{}: valid; {} cases, {} structure names{}; output to {}",
         args.config.display(),
@@ -43,7 +54,7 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         names.len(),
         if n_label_maps > 0 {
             format!(
-                " (from mesh files and [labels]; {n_label_maps} label maps name the rest of their structures when read)"
+                " (from mesh files, [labels] and the segment names of label map headers; {n_label_maps} label maps name the rest of their structures when read)"
             )
         } else {
             String::new()
@@ -59,7 +70,30 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
                 .map(|t| format!(" + [[structure]] {t:?}"))
                 .collect::<String>()
         );
-        print!("{}", plan.settings_for(n).config_view());
+        let settings = plan.settings_for(n);
+        if label_names.contains(n) {
+            println!("{}", label_note(&settings));
+        }
+        print!("{}", settings.config_view());
+    }
+    // Labels no name reaches before the maps are read (label_<value>, a NIfTI's labels).
+    if n_label_maps > 0 {
+        let settings = plan.default_settings();
+        println!(
+            "\n# the label maps' other labels (label_<value> or their files' names): [defaults]"
+        );
+        println!("{}", label_note(&settings));
+        print!("{}", settings.config_view());
     }
     Ok(())
+}
+
+/// What a structure made from a label map gets with `settings`, as a comment.
+fn label_note(settings: &destair::job::StructureSettings) -> String {
+    use destair::extract::constrained::Surface;
+    match (settings.extraction.surface, settings.method_configured) {
+        (Surface::Constrained, false) => "# from a label map: the constrained surface is the result; no mesh smoother runs on it unless `method` is set for it, so the smoothing keys below are unused".into(),
+        (Surface::Constrained, true) => "# from a label map: the constrained surface, then the mesh smoother below (from it)".into(),
+        (Surface::Binary, _) => "# from a label map: the binary surface, then the mesh smoother below".into(),
+    }
 }

@@ -318,6 +318,33 @@ fn two_layers_of_a_seg_nrrd_by_their_names_or_by_layer() {
             .count(),
         1
     );
+    // `check` says what label structures get: the constrained surface and no smoother unless
+    // `method` is set for one (here the tumour), also for labels no name reaches yet.
+    let cfg = config(
+        tmp.path(),
+        &format!("{head}{labels}[[structure]]\npattern = \"tumor\"\nmethod = \"taubin\"\n"),
+    );
+    let out = destair_ok(&["check", cfg.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&out.stdout).to_string();
+    let section = |name: &str| {
+        let start = (text.find(&format!("\n# {name}:")))
+            .or_else(|| text.find(&format!("\n# {name} (")))
+            .unwrap_or_else(|| panic!("no section {name}: {text}"));
+        let rest = &text[start + 1..];
+        rest[..rest.find("\n\n").unwrap_or(rest.len())].to_string()
+    };
+    let unsmoothed = "the constrained surface is the result; no mesh smoother runs on it";
+    assert!(section("liver").contains(unsmoothed), "{text}");
+    assert!(section("cyst").contains(unsmoothed), "{text}");
+    assert!(
+        section("the label maps' other labels").contains(unsmoothed),
+        "{text}"
+    );
+    let tumor = section("tumor");
+    assert!(
+        tumor.contains("then the mesh smoother below") && tumor.contains("method = \"taubin\""),
+        "{text}"
+    );
     // A key that is neither form is refused with the forms it may take.
     let cfg = config(tmp.path(), &format!("{head}[labels]\n\"a:1\" = \"x\"\n"));
     let out = destair(&["check", cfg.to_str().unwrap()]);
