@@ -33,19 +33,7 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         .flat_map(|c| c.meshes.iter().map(|(n, _)| n.as_str()))
         .collect();
     let n_label_maps: usize = found.cases.iter().map(|c| c.label_maps.len()).sum();
-    // Names of label structures known before the maps are read: [labels] and the segment
-    // names of the maps' headers.
-    let mut label_names: std::collections::BTreeSet<String> = Default::default();
-    if n_label_maps > 0 {
-        label_names.extend(plan.label_names.values().cloned());
-        for path in found.cases.iter().flat_map(|c| &c.label_maps) {
-            for seg in destair::volume::declared_segments(path) {
-                if plan.label_name(seg.layer, seg.value).is_none() {
-                    label_names.insert(seg.name);
-                }
-            }
-        }
-    }
+    let label_names = &review.label_names;
     names.extend(label_names.iter().map(String::as_str));
     println!(
         "{}: valid; {} cases, {} structure names{}; output to {}",

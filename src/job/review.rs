@@ -12,6 +12,29 @@ use std::collections::BTreeSet;
 pub struct Review {
     pub errors: Vec<String>,
     pub warnings: Vec<String>,
+    /// The label structures' names known before any voxel is read: `[labels]` and the label
+    /// maps' segment names.
+    pub label_names: BTreeSet<String>,
+}
+
+/// The names of label structures known before any voxel is read: `[labels]` and the segment
+/// names of the label maps' headers (Slicer's) for labels `[labels]` does not name. Label maps
+/// name the rest `label_<value>` once read. Empty when no case has a label map.
+fn label_structure_names(plan: &Plan, found: &Discovery) -> BTreeSet<String> {
+    let mut names = BTreeSet::new();
+    let mut label_maps = found.cases.iter().flat_map(|c| &c.label_maps).peekable();
+    if label_maps.peek().is_none() {
+        return names;
+    }
+    names.extend(plan.label_names.values().cloned());
+    for path in label_maps {
+        for seg in crate::volume::declared_segments(path) {
+            if plan.label_name(seg.layer, seg.value).is_none() {
+                names.insert(seg.name);
+            }
+        }
+    }
+    names
 }
 
 /// Reviews a plan against its discovered cases.
@@ -42,20 +65,10 @@ pub fn review(plan: &Plan, found: &Discovery) -> Review {
         .iter()
         .flat_map(|c| c.meshes.iter().map(|(n, _)| n.clone()))
         .collect();
-    // Label maps name their structures from [labels], from their headers (Slicer's segments)
-    // or as label_<value>; the last are known only once the voxels are read.
     let label_maps: Vec<&std::path::PathBuf> =
         found.cases.iter().flat_map(|c| &c.label_maps).collect();
-    if !label_maps.is_empty() {
-        names.extend(plan.label_names.values().cloned());
-        for path in &label_maps {
-            for seg in crate::volume::declared_segments(path) {
-                if plan.label_name(seg.layer, seg.value).is_none() {
-                    names.insert(seg.name);
-                }
-            }
-        }
-    }
+    r.label_names = label_structure_names(plan, found);
+    names.extend(r.label_names.iter().cloned());
     let unnamed_label = |n: &str| {
         !label_maps.is_empty()
             && n.strip_prefix("label_")
