@@ -361,6 +361,10 @@ struct Surfaces {
 }
 
 /// Where a structure's file came from, for messages.
+/// Largest change of a label structure's enclosed volume from its voxels' volume (a share)
+/// before the report warns.
+const LABEL_VOLUME_TOLERANCE: f64 = 0.1;
+
 fn origin(f: &LoadedFile) -> String {
     match &f.source {
         // The layer only where there can be several (a .seg.nrrd's layers reuse values).
@@ -643,6 +647,20 @@ fn process_structure(
         &named_refs,
         voxel.map(|v| v.map(f64::from)),
     );
+    // A label's surface far from its voxels' volume (small and thin labels shrink in the
+    // constrained extraction): said, not reported as plain ok.
+    if let Some(source) = file.source.as_ref() {
+        let (enclosed, voxels) = (metrics.volume_smoothed_mm3.abs(), source.voxel_volume_mm3);
+        if voxels > 0.0 && (enclosed - voxels).abs() > LABEL_VOLUME_TOLERANCE * voxels {
+            report.warnings.push(format!(
+                "label {} of {}: the surface encloses {enclosed:.1} mm³, {:.0} % of its voxels' {voxels:.1} mm³ (more than {:.0} % off): small or thin parts lost or gained volume; compare with surface = \"binary\"",
+                source.label,
+                source.label_map,
+                100.0 * enclosed / voxels,
+                100.0 * LABEL_VOLUME_TOLERANCE
+            ));
+        }
+    }
     report.metrics = Some(metrics);
     let displacement: Vec<f32> = crate::metrics::displacements(before.positions(), &positions)
         .into_iter()

@@ -207,6 +207,54 @@ fn labels_become_structures_smoothed_with_the_header_geometry() {
     }
 }
 
+#[test]
+fn a_label_whose_surface_encloses_far_less_than_its_voxels_is_a_warning() {
+    // A block of 20 x 20 x 8 voxels and a vessel 2 x 2 voxels across along the slices, on
+    // 0.8 x 0.8 x 2.5 mm: the constrained surface keeps the block's volume, not the vessel's.
+    let tmp = tempfile::tempdir().unwrap();
+    let dims = [32, 32, 14];
+    let mut values = vec![0i64; dims.iter().product()];
+    for k in 1..13 {
+        for j in 2..30 {
+            for i in 2..30 {
+                let label = if (4..24).contains(&i) && (4..24).contains(&j) && (3..11).contains(&k)
+                {
+                    1
+                } else if (27..29).contains(&i) && (27..29).contains(&j) {
+                    2
+                } else {
+                    0
+                };
+                values[i + dims[0] * (j + dims[1] * k)] = label;
+            }
+        }
+    }
+    let grid = Grid::axis_aligned([0.8, 0.8, 2.5], [0.0; 3], Space::Ras);
+    let volume = LabelVolume::from_values(dims, grid, values.into_iter()).unwrap();
+    write(
+        &tmp.path().join("cases/a/seg.nii.gz"),
+        &nifti::encode(&volume, true).unwrap(),
+    );
+    let cfg = config(tmp.path(), head!());
+    destair_ok(&["run", cfg.to_str().unwrap()]);
+    let r = report(tmp.path(), "a");
+    let warned = |name: &str| {
+        let s = structure(&r, name);
+        let enclosed = s["metrics"]["volume_smoothed_mm3"].as_f64().unwrap();
+        let voxels = s["source"]["voxel_volume_mm3"].as_f64().unwrap();
+        let warning = s["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|w| w.as_str().unwrap().contains("the surface encloses"));
+        (enclosed / voxels, warning)
+    };
+    let (block, block_warned) = warned("tumor");
+    assert!((block - 1.0).abs() <= 0.1 && !block_warned, "{block}");
+    let (vessel, vessel_warned) = warned("vein");
+    assert!(vessel < 0.9 && vessel_warned, "{vessel}");
+}
+
 /// Two overlapping layers of a `.seg.nrrd` (a liver with a cyst in layer 0, a tumour inside the
 /// liver in layer 1), both value 1 for liver and tumour, named by Slicer's segments.
 fn two_layer_seg_nrrd(path: &Path) {
