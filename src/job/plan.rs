@@ -429,7 +429,7 @@ impl serde::Serialize for LabelKey {
 /// automatic tau and `reaches_volume_edge` (issue 61). 2: flat regions filled from their
 /// flattest face within the growth limits, coplanar faces, rises and dents (issue 61's caps).
 /// 3: turned grids of tubes with only corner facets, ties in the axis estimate, the file's
-/// label names in reports and the NIfTI sform/qform warning.
+/// label names in reports, the NIfTI sform/qform warning and the label volume warning.
 pub const OUTPUT_REVISION: u32 = 3;
 
 /// Largest number of guard repair rounds.
