@@ -360,11 +360,11 @@ struct Surfaces {
     picture: Option<PictureInput>,
 }
 
-/// Where a structure's file came from, for messages.
 /// Largest change of a label structure's enclosed volume from its voxels' volume (a share)
 /// before the report warns.
 const LABEL_VOLUME_TOLERANCE: f64 = 0.1;
 
+/// Where a structure's file came from, for messages.
 fn origin(f: &LoadedFile) -> String {
     match &f.source {
         // The layer only where there can be several (a .seg.nrrd's layers reuse values).
@@ -653,9 +653,8 @@ fn process_structure(
         let (enclosed, voxels) = (metrics.volume_smoothed_mm3.abs(), source.voxel_volume_mm3);
         if voxels > 0.0 && (enclosed - voxels).abs() > LABEL_VOLUME_TOLERANCE * voxels {
             report.warnings.push(format!(
-                "label {} of {}: the surface encloses {enclosed:.1} mm³, {:.0} % of its voxels' {voxels:.1} mm³ (more than {:.0} % off): small or thin parts lost or gained volume; compare with surface = \"binary\"",
-                source.label,
-                source.label_map,
+                "{}: the surface encloses {enclosed:.1} mm³, {:.0} % of its voxels' {voxels:.1} mm³ (more than {:.0} % off): small or thin parts lost or gained volume; compare with surface = \"binary\"",
+                origin(file),
                 100.0 * enclosed / voxels,
                 100.0 * LABEL_VOLUME_TOLERANCE
             ));
