@@ -725,10 +725,10 @@ pub fn labelmap(dir: &Path, repeat: usize, keep: bool) -> std::io::Result<LabelM
         count_s: 0.0,
         n_surface_triangles: 0,
     };
-    let (s, size) = best_of(repeat, || crate::extract::surface_size(&volume));
+    let (s, size) = best_of(repeat, || crate::extract::surface_size(&volume, &[]));
     out.count_s = s;
     out.n_surface_triangles = size.triangles;
-    let (s, all) = best_of(repeat, || crate::extract::interfaces(&volume));
+    let (s, all) = best_of(repeat, || crate::extract::interfaces(&volume, &[]));
     out.interfaces_s = s;
     (out.assemble_s, _) = best_of(repeat, || crate::extract::label_surfaces(&volume, &all));
     drop(all);
@@ -737,7 +737,7 @@ pub fn labelmap(dir: &Path, repeat: usize, keep: bool) -> std::io::Result<LabelM
     let mut times = Vec::with_capacity(repeat.max(1));
     let (s, (all, _surfaces)) = best_of(repeat, || {
         let t = Instant::now();
-        let all = crate::extract::interfaces(&volume);
+        let all = crate::extract::interfaces(&volume, &[]);
         let surfaces = crate::extract::label_surfaces(&volume, &all);
         times.push(t.elapsed().as_secs_f64());
         (all, surfaces)

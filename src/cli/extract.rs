@@ -39,6 +39,11 @@ pub struct Args {
     /// shrink onto their voxel centres.
     #[arg(long, value_enum)]
     thin: Option<ThinArg>,
+    /// Which voxels of a label form one object: 26 joins voxels that touch by a face, an edge
+    /// or a corner (segmentation tools' convention: thin oblique vessels stay one piece); 6
+    /// joins only voxels that share a face.
+    #[arg(long, default_value_t = 26, value_parser = parse_connectivity)]
+    connectivity: u8,
     /// Also write all interfaces as one PLY with per-face `inner_label` and `outer_label` (the
     /// label values on the two sides; 0 is background), as tetrahedral meshers with regions
     /// take. Further layers of a .seg.nrrd go to FILE_layerN.ply.
@@ -68,6 +73,14 @@ enum ThinArg {
 enum FormatArg {
     Ply,
     Stl,
+}
+
+fn parse_connectivity(s: &str) -> Result<u8, String> {
+    match s.trim() {
+        "26" => Ok(26),
+        "6" => Ok(6),
+        _ => Err(format!("{s:?}: must be 26 or 6")),
+    }
 }
 
 /// `VALUE=NAME` pairs from `--labels`.
@@ -132,6 +145,10 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     };
     // What reading and the surfaces need, against what this process may use, before either.
     let memory = destair::job::memory::process_memory_limit();
+    let connectivity = match args.connectivity {
+        6 => destair::extract::Connectivity::Faces,
+        _ => destair::extract::Connectivity::Corners,
+    };
     let too_much = |need: u64, what: &str| -> anyhow::Error {
         LabelMapInputError(destair::volume::LabelMapError {
             path: args.labelmap.clone(),
@@ -153,7 +170,9 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     let triangles: u64 = map
         .layers
         .iter()
-        .map(|l| destair::extract::surface_size(l).triangles)
+        .map(|l| {
+            destair::extract::surface_size(l, &vec![connectivity; l.labels.len() + 1]).triangles
+        })
         .sum();
     let need = header
         .bytes_to_read()
@@ -199,6 +218,7 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         FormatArg::Stl => "stl",
     };
     let mut rows = Vec::new();
+    let mut warnings = Vec::new();
     let mut used = std::collections::BTreeSet::new();
     let t_extract = std::time::Instant::now();
     use destair::extract::constrained::{LabelSmoothing, Noise, Surface, Thin};
@@ -216,20 +236,24 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
             Some(ThinArg::Off) => Thin::Off,
             _ => Thin::Protect,
         },
+        connectivity,
     };
     let surfaces_of = |layer: &destair::volume::LabelVolume| {
-        let mut all = destair::extract::interfaces(layer);
-        let counts = destair::extract::constrained::place_on_weights(
+        let per_label = vec![smoothing; layer.labels.len() + 1];
+        let mut all = destair::extract::interfaces(
             layer,
-            &mut all,
-            &vec![smoothing; layer.labels.len() + 1],
+            &destair::extract::constrained::connectivity_of(&per_label),
         );
+        let counts = destair::extract::constrained::place_on_weights(layer, &mut all, &per_label);
         (all, counts)
     };
     // Interfaces kept for --combined, which writes the same surfaces as one mesh.
     let mut kept = Vec::new();
     for (layer_index, layer) in map.layers.iter().enumerate() {
         let (all, counts) = surfaces_of(layer);
+        let joins =
+            vec![connectivity == destair::extract::Connectivity::Corners; layer.labels.len() + 1];
+        let objects = destair::volume::components::label_components(layer, &joins);
         let surfaces = destair::extract::label_surfaces(layer, &all);
         if args.combined.is_some() {
             kept.push(all);
@@ -253,8 +277,13 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
             let extraction = destair::extract::report::Extraction::new(
                 layer,
                 &smoothing,
+                objects[s.label as usize],
+                &s.mesh,
                 counts[s.label as usize],
             );
+            if let Some(w) = extraction.pieces_warning() {
+                warnings.push(format!("label {} ({}): {w}", label.value, label.name));
+            }
             jobs.push((label, file, s.mesh, extraction));
         }
         use rayon::prelude::*;
@@ -329,7 +358,7 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         spacing_mm: g.spacing(),
         affine: g.affine(),
         labels: rows,
-        warnings: map.warnings.clone(),
+        warnings: map.warnings.iter().cloned().chain(warnings).collect(),
     };
     let json = serde_json::to_vec_pretty(&report)?;
     let path = args.out.join("extract.json");

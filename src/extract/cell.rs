@@ -7,13 +7,15 @@
 use super::Interfaces;
 use rustc_hash::FxHashMap;
 
-/// A segment on a cube face: endpoints (vertex keys), the labels on its two sides, and a
-/// witness point (a corner) inside the first label's part of the face.
+/// A segment on a cube face: endpoints (vertex keys), the labels on its two sides, a witness
+/// point (a corner) inside the first label's part of the face, and a corner of each side's
+/// part.
 #[derive(Clone, Copy)]
 pub(super) struct Segment {
     ends: [u64; 2],
     labels: [u16; 2],
     witness: [f64; 3],
+    corners: [usize; 2],
 }
 
 /// Where the per-cell work collects vertices: key -> index, with positions.
@@ -54,17 +56,28 @@ pub(super) struct Template {
 }
 
 impl Template {
-    /// Derives the template of the configuration `key` (3 bits of rank per corner, corner 0
-    /// in the highest bits).
+    /// Derives the template of the configuration `key`: 3 bits of rank per corner in the low
+    /// 24 bits (corner 0 in the highest of them), and above them one bit per rank for the
+    /// labels whose voxels join across edges and corners (26-connectivity).
     pub(super) fn of(key: u32) -> Template {
         let labels: [u16; 8] = std::array::from_fn(|c| ((key >> (3 * (7 - c))) & 7) as u16);
+        let joins = (key >> 24) as u8;
         let pos = |c: usize| [(c & 1) as f64, ((c >> 1) & 1) as f64, ((c >> 2) & 1) as f64];
         let gid = |c: usize| c as u64;
         let mut segments = Vec::with_capacity(24);
         let mut points = Vec::with_capacity(48);
+        // Where each face's segments start (faces in the order axis, side).
+        let mut face_starts = [0usize; 7];
         for axis in 0..3 {
             for side in 0..2 {
-                face_segments(axis, side, &labels, &pos, &gid, &mut segments, &mut points);
+                let corners = FaceCorners {
+                    labels: &labels,
+                    joins,
+                    pos: &pos,
+                    gid: &gid,
+                };
+                face_segments(axis, side, &corners, &mut segments, &mut points);
+                face_starts[2 * axis + side + 1] = segments.len();
             }
         }
         let mut verts = Vertices {
@@ -72,7 +85,18 @@ impl Template {
             positions: Vec::new(),
         };
         let mut out = Interfaces::default();
-        cell_triangles(&segments, &points, 0, &mut verts, &mut out);
+        if let Some(c) = tunnel_corner(&labels, joins) {
+            tunnel(c, &labels, &mut verts, &mut out);
+        } else if let Some(x) = core_label(&labels, joins) {
+            let faces = Faces {
+                segments: &segments,
+                starts: &face_starts,
+                points: &points,
+            };
+            core(x, &labels, joins, &faces, &mut verts, &mut out);
+        } else {
+            cell_triangles(&segments, &points, 0, &mut verts, &mut out);
+        }
         let mut keys = vec![0u64; verts.positions.len()];
         for (&key, &at) in &verts.index {
             keys[at as usize] = key;
@@ -94,17 +118,42 @@ impl Template {
     }
 }
 
+/// A cell's corners as its faces see them: ranks, which ranks join diagonally, positions and
+/// grid ids.
+struct FaceCorners<'a> {
+    labels: &'a [u16; 8],
+    joins: u8,
+    pos: &'a dyn Fn(usize) -> [f64; 3],
+    gid: &'a dyn Fn(usize) -> u64,
+}
+
+/// Of two labels on a face's diagonals, the one whose corners connect across the face: the
+/// one that joins diagonally (26-connectivity) when only one does, else the lower (the
+/// background before any structure).
+fn connecting(x: u16, y: u16, joins: u8) -> u16 {
+    let join = |r: u16| (joins >> r) & 1 == 1;
+    match (join(x), join(y)) {
+        (true, false) => x,
+        (false, true) => y,
+        _ => x.min(y),
+    }
+}
+
 /// The segments of one cube face (normal `axis`, at `side` 0 or 1), decided from its four
 /// corner labels alone.
 fn face_segments(
     axis: usize,
     side: usize,
-    labels: &[u16; 8],
-    pos: &dyn Fn(usize) -> [f64; 3],
-    gid: &dyn Fn(usize) -> u64,
+    corners: &FaceCorners,
     out: &mut Vec<Segment>,
     points: &mut Vec<(u64, [f64; 3])>,
 ) {
+    let FaceCorners {
+        labels,
+        joins,
+        pos,
+        gid,
+    } = *corners;
     let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
     let c = |du: usize, dv: usize| (side << axis) | (du << u) | (dv << v);
     let ring = [c(0, 0), c(1, 0), c(1, 1), c(0, 1)];
@@ -133,6 +182,7 @@ fn face_segments(
             ends: [a.0, b.0],
             labels: [x, y],
             witness: pos(ring[w % 4]),
+            corners: [ring[w % 4], ring[(w + 1) % 4]],
         });
         points.push(a);
         points.push(b);
@@ -148,8 +198,12 @@ fn face_segments(
                 // One corner differs: cut it off.
                 push(mid(o + 3, o), mid(o, o + 1), l[o], l[(o + 2) % 4], o);
             } else if l[0] == l[2] {
-                // Diagonal: the lower label connects, the other's corners are cut off.
-                let cut = if l[0] > l[1] { 0 } else { 1 };
+                // Diagonal: one label connects, the other's corners are cut off.
+                let cut = if connecting(l[0], l[1], joins) == l[0] {
+                    1
+                } else {
+                    0
+                };
                 for o in [cut, cut + 2] {
                     push(mid(o + 3, o), mid(o, o + 1), l[o], l[(o + 1) % 4], o);
                 }
@@ -376,6 +430,259 @@ fn cell_triangles(
             out.sides.push(seg.labels);
         }
         component += 1;
+    }
+}
+
+/// The corner of a two-label cell whose label holds only it and the opposite corner and joins
+/// diagonally: those two voxels touch only at the cell's centre, so a tube joins them.
+fn tunnel_corner(labels: &[u16; 8], joins: u8) -> Option<usize> {
+    (0..4).find(|&c| {
+        let (own, other) = (labels[c], labels[c ^ 1]);
+        let alone = (0..8).all(|d| (labels[d] == own) == (d == c || d == c ^ 7));
+        let two_labels = labels.iter().all(|&l| l == own || l == other);
+        alone && two_labels && (joins >> own) & 1 == 1
+    })
+}
+
+/// The tube between corner `c` and the opposite corner of a cell (their label `labels[c]`,
+/// the other six corners one other label): the antiprism between the two triangles that cut
+/// the corners off, six triangles whose outer edges are the faces' segments.
+fn tunnel(c: usize, labels: &[u16; 8], verts: &mut Vertices, out: &mut Interfaces) {
+    let pos = |c: usize| [(c & 1) as f64, ((c >> 1) & 1) as f64, ((c >> 2) & 1) as f64];
+    // The vertex on the edge from corner `a` along `axis`.
+    let mut on_edge = |a: usize, axis: usize| {
+        let b = a ^ (1 << axis);
+        let key = (((a.min(b) as u64) * 3 + axis as u64) << 2) | KIND_EDGE;
+        let (pa, pb) = (pos(a), pos(b));
+        verts.get(key, || std::array::from_fn(|x| 0.5 * (pa[x] + pb[x])))
+    };
+    let far = c ^ 7;
+    // Around the cell's diagonal: from c along x, from far along z, from c along y, from far
+    // along x, from c along z, from far along y (each next to the one before on a face).
+    let ring = [
+        on_edge(c, 0),
+        on_edge(far, 2),
+        on_edge(c, 1),
+        on_edge(far, 0),
+        on_edge(c, 2),
+        on_edge(far, 1),
+    ];
+    let centre = [0.5; 3];
+    let sides = [labels[c], labels[c ^ 1]];
+    for i in 0..6 {
+        let tri = [ring[i], ring[(i + 1) % 6], ring[(i + 2) % 6]];
+        let [a, b, d] = tri.map(|v| verts.positions[v as usize]);
+        // The normal points away from the tube's own label, which holds the centre.
+        let tri = if outward_dot(a, b, d, centre) > 0.0 {
+            [tri[0], tri[2], tri[1]]
+        } else {
+            tri
+        };
+        out.triangles.push(tri);
+        out.outer_apex.push(tri[2]);
+        out.sides.push(sides);
+    }
+}
+
+/// The corners of face (`axis`, `side`) in ring order.
+fn face_ring(axis: usize, side: usize) -> [usize; 4] {
+    let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+    let c = |du: usize, dv: usize| (side << axis) | (du << u) | (dv << v);
+    [c(0, 0), c(1, 0), c(1, 1), c(0, 1)]
+}
+
+/// Which corners of a face's ring lie in one part of the face (a part per label piece, as
+/// [`face_segments`] cuts it): ring neighbours of one label always, diagonal corners of one
+/// label when that label wins the face's middle.
+fn face_parts(l: &[u16; 4], joins: u8) -> [usize; 4] {
+    let mut part = [0, 1, 2, 3];
+    let mut distinct = l.to_vec();
+    distinct.sort_unstable();
+    distinct.dedup();
+    for o in 0..4 {
+        let diagonal_joined = l[o] == l[(o + 2) % 4]
+            && l[(o + 1) % 4] != l[o]
+            && (distinct.len() == 3
+                || (distinct.len() == 2 && connecting(l[o], l[(o + 1) % 4], joins) == l[o]));
+        for (other, joined) in [
+            ((o + 1) % 4, l[o] == l[(o + 1) % 4]),
+            ((o + 2) % 4, diagonal_joined),
+        ] {
+            if joined {
+                let (a, b) = (part[o].min(part[other]), part[o].max(part[other]));
+                for p in part.iter_mut() {
+                    if *p == b {
+                        *p = a;
+                    }
+                }
+            }
+        }
+    }
+    part
+}
+
+/// The lowest label joining diagonally (26-connectivity) whose corners in the cell fall into
+/// more than one piece on the cell's faces: its voxels touch through the cell, so it gets a
+/// core there.
+fn core_label(labels: &[u16; 8], joins: u8) -> Option<u16> {
+    let mut group: [usize; 8] = std::array::from_fn(|c| c);
+    let mut join = |a: usize, b: usize| {
+        let (ga, gb) = (group[a].min(group[b]), group[a].max(group[b]));
+        for g in group.iter_mut() {
+            if *g == gb {
+                *g = ga;
+            }
+        }
+    };
+    for axis in 0..3 {
+        for side in 0..2 {
+            let ring = face_ring(axis, side);
+            let parts = face_parts(&ring.map(|c| labels[c]), joins);
+            for a in 0..4 {
+                for b in a + 1..4 {
+                    if parts[a] == parts[b] {
+                        join(ring[a], ring[b]);
+                    }
+                }
+            }
+        }
+    }
+    let mut ranks: Vec<u16> = labels.to_vec();
+    ranks.sort_unstable();
+    ranks.dedup();
+    ranks.into_iter().find(|&r| {
+        let mut groups: Vec<usize> = (0..8)
+            .filter(|&c| labels[c] == r)
+            .map(|c| group[c])
+            .collect();
+        groups.sort_unstable();
+        groups.dedup();
+        (joins >> r) & 1 == 1 && groups.len() > 1
+    })
+}
+
+/// A cell's face segments, per face.
+struct Faces<'a> {
+    segments: &'a [Segment],
+    /// Face f's segments are `segments[starts[f]..starts[f + 1]]` (faces by axis, then side).
+    starts: &'a [usize; 7],
+    points: &'a [(u64, [f64; 3])],
+}
+
+/// A cell where label `x` touches itself only through the cell's inside: every face piece is
+/// joined to a core (the cell's surface shrunk to half around its centre) by ribbons that run
+/// from the faces' segments to the core, and the core belongs to `x`, so all of `x`'s pieces
+/// meet in it; the other labels' pieces end on the core, each in a patch that separates it
+/// from `x`.
+fn core(
+    x: u16,
+    labels: &[u16; 8],
+    joins: u8,
+    faces: &Faces,
+    verts: &mut Vertices,
+    out: &mut Interfaces,
+) {
+    let pos = |c: usize| [(c & 1) as f64, ((c >> 1) & 1) as f64, ((c >> 2) & 1) as f64];
+    let centre = [0.5; 3];
+    let position = |key: u64| -> [f64; 3] {
+        (faces.points.iter())
+            .find(|(k, _)| *k == key)
+            .map_or([0.0; 3], |(_, p)| *p)
+    };
+    let shrink = |p: [f64; 3]| -> [f64; 3] { std::array::from_fn(|a| 0.5 * (p[a] + centre[a])) };
+    // The core's vertices: the shrunk copy of each corner (by corner) and face vertex (by key).
+    let mut sources: Vec<u64> = Vec::new();
+    let mut core_vertex = |verts: &mut Vertices, source: u64, at: [f64; 3]| -> u32 {
+        let index = match sources.iter().position(|&s| s == source) {
+            Some(i) => i,
+            None => {
+                sources.push(source);
+                sources.len() - 1
+            }
+        };
+        verts.get(apex_key(0, 15, index as u64), || shrink(at))
+    };
+    let corner_source = |c: usize| u64::MAX - c as u64;
+    let push =
+        |out: &mut Interfaces, verts: &Vertices, tri: [u32; 3], sides: [u16; 2], w: [f64; 3]| {
+            let [a, b, c] = tri.map(|v| verts.positions[v as usize]);
+            let tri = if outward_dot(a, b, c, w) > 0.0 {
+                [tri[0], tri[2], tri[1]]
+            } else {
+                tri
+            };
+            out.triangles.push(tri);
+            out.outer_apex.push(tri[2]);
+            out.sides.push(sides);
+        };
+    // Ribbons: each segment to its shrunk copy, oriented away from its first label.
+    for seg in faces.segments {
+        let [pa, pb] = seg.ends.map(position);
+        let (a, b) = (verts.get(seg.ends[0], || pa), verts.get(seg.ends[1], || pb));
+        let (a2, b2) = (
+            core_vertex(verts, seg.ends[0], pa),
+            core_vertex(verts, seg.ends[1], pb),
+        );
+        push(out, verts, [a, b, b2], seg.labels, seg.witness);
+        push(out, verts, [a, b2, a2], seg.labels, seg.witness);
+    }
+    // Patches: every face part of a label other than `x`, shrunk, fanned from one of its
+    // corners, oriented away from the centre (which `x` holds).
+    for axis in 0..3 {
+        for side in 0..2 {
+            let f = 2 * axis + side;
+            let ring = face_ring(axis, side);
+            let l = ring.map(|c| labels[c]);
+            let parts = face_parts(&l, joins);
+            let segments = &faces.segments[faces.starts[f]..faces.starts[f + 1]];
+            let mid = |o: usize| -> u64 {
+                let (ca, cb) = (ring[o % 4], ring[(o + 1) % 4]);
+                let axis = (ca ^ cb).trailing_zeros() as u64;
+                (((ca.min(cb) as u64) * 3 + axis) << 2) | KIND_EDGE
+            };
+            for part in 0..4 {
+                let members: Vec<usize> = (0..4).filter(|&o| parts[o] == part).collect();
+                let Some(&first) = members.first() else {
+                    continue;
+                };
+                if l[first] == x {
+                    continue;
+                }
+                let inside = |o: usize| parts[o % 4] == part;
+                // The part's boundary: face edges (whole or to their midpoint), and segments.
+                let mut edges: Vec<(u64, [f64; 3], u64, [f64; 3])> = Vec::new();
+                let corner = |o: usize| (corner_source(ring[o % 4]), pos(ring[o % 4]));
+                let midpoint = |o: usize| (mid(o), position(mid(o)));
+                for o in 0..4 {
+                    let (a, b) = match (inside(o), inside(o + 1)) {
+                        (true, true) => (corner(o), corner(o + 1)),
+                        (true, false) => (corner(o), midpoint(o)),
+                        (false, true) => (midpoint(o), corner(o + 1)),
+                        (false, false) => continue,
+                    };
+                    edges.push((a.0, a.1, b.0, b.1));
+                }
+                for seg in segments {
+                    if seg
+                        .corners
+                        .iter()
+                        .any(|&c| ring.iter().position(|&r| r == c).is_some_and(inside))
+                    {
+                        let [pa, pb] = seg.ends.map(position);
+                        edges.push((seg.ends[0], pa, seg.ends[1], pb));
+                    }
+                }
+                let (apex_source, apex_at) = corner(first);
+                let apex = core_vertex(verts, apex_source, apex_at);
+                for (ka, pa, kb, pb) in edges {
+                    if ka == apex_source || kb == apex_source {
+                        continue;
+                    }
+                    let (a, b) = (core_vertex(verts, ka, pa), core_vertex(verts, kb, pb));
+                    push(out, verts, [apex, a, b], [x, l[first]], centre);
+                }
+            }
+        }
     }
 }
 

@@ -105,6 +105,8 @@ pub struct LabelSmoothing {
     pub sigma_mm: Option<f64>,
     pub noise: Noise,
     pub thin: Thin,
+    /// Which of the label's voxels form one object (26: also across edges and corners).
+    pub connectivity: super::Connectivity,
 }
 
 impl Default for LabelSmoothing {
@@ -114,6 +116,7 @@ impl Default for LabelSmoothing {
             sigma_mm: None,
             noise: Noise::Smooth,
             thin: Thin::Protect,
+            connectivity: super::Connectivity::Corners,
         }
     }
 }
@@ -131,6 +134,11 @@ impl LabelSmoothing {
     pub fn sigma_on(&self, volume: &LabelVolume) -> f64 {
         self.sigma_mm.unwrap_or_else(|| default_sigma_mm(volume))
     }
+}
+
+/// Each label's connectivity from its extraction settings (for [`super::interfaces`]).
+pub fn connectivity_of(smoothing: &[LabelSmoothing]) -> Vec<super::Connectivity> {
+    smoothing.iter().map(|s| s.connectivity).collect()
 }
 
 /// The chapter's sigma: twice the smallest voxel spacing (mm).

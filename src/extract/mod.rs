@@ -60,6 +60,38 @@ pub const VERTEX_FACE: u8 = 1;
 /// A branching point inside a cell (the centre of a membrane's fan).
 pub const VERTEX_APEX: u8 = 2;
 
+/// Which voxels of a label form one object: those that share a face (6-connectivity), or also
+/// those that touch only by an edge or a corner (26-connectivity, the convention of
+/// segmentation tools). The background is always face-connected: it is what lies between.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub enum Connectivity {
+    /// Voxels touching by a face, an edge or a corner form one object (the default).
+    #[default]
+    #[serde(rename = "26")]
+    Corners,
+    /// Only voxels sharing a face form one object.
+    #[serde(rename = "6")]
+    Faces,
+}
+
+impl Connectivity {
+    /// The config number (26 or 6).
+    pub fn number(self) -> u8 {
+        match self {
+            Connectivity::Corners => 26,
+            Connectivity::Faces => 6,
+        }
+    }
+}
+
+/// Per dense label, whether its voxels join across edges and corners (`connectivity[l]`;
+/// missing entries take the default; the background, entry 0, never does).
+fn joins_of(volume: &LabelVolume, connectivity: &[Connectivity]) -> Vec<bool> {
+    (0..=volume.labels.len())
+        .map(|l| l > 0 && connectivity.get(l).copied().unwrap_or_default() == Connectivity::Corners)
+        .collect()
+}
+
 /// Slabs of cells (along z) per parallel task. Fixed, so results do not depend on the thread
 /// count.
 const SLAB: i64 = 4;
@@ -79,10 +111,11 @@ struct SlabOutput {
 }
 
 /// Extracts every interface of `volume` (labels outside the volume count as background, so
-/// structures that reach the border are closed there by a flat cap). Slabs of cells run in
-/// parallel; slabs are fixed and merged in order, so the output does not depend on the
-/// thread count.
-pub fn interfaces(volume: &LabelVolume) -> Interfaces {
+/// structures that reach the border are closed there by a flat cap). `connectivity[l]` is
+/// how dense label `l`'s voxels join (missing entries: 26). Slabs of cells run in parallel;
+/// slabs are fixed and merged in order, so the output does not depend on the thread count.
+pub fn interfaces(volume: &LabelVolume, connectivity: &[Connectivity]) -> Interfaces {
+    let joins = joins_of(volume, connectivity);
     use rayon::prelude::*;
     let nz = volume.dims[2] as i64;
     let n_slabs = (nz + 1 + SLAB - 1) / SLAB;
@@ -98,7 +131,7 @@ pub fn interfaces(volume: &LabelVolume) -> Interfaces {
             let slot = rayon::current_thread_index().unwrap_or(0) % pool.len();
             let mut scratch = pool[slot].lock().unwrap_or_else(|e| e.into_inner());
             let k0 = -1 + s * SLAB;
-            slab(volume, k0..(k0 + SLAB).min(nz), &mut scratch)
+            slab(volume, &joins, k0..(k0 + SLAB).min(nz), &mut scratch)
         })
         .collect();
     // Vertex numbers: a slab's vertices in its own order, except those on its bottom plane,
@@ -244,14 +277,16 @@ impl Templates {
         self.by_key.entry(key).or_insert_with(|| Template::of(key))
     }
 
+    /// `mask`: the corners holding the larger label in bits 0..8, which of the two labels
+    /// join diagonally in bits 8 (the smaller) and 9.
     fn two_labels(&mut self, mask: usize) -> &Template {
         if self.two_labels.is_empty() {
-            self.two_labels.resize_with(256, || None);
+            self.two_labels.resize_with(1024, || None);
         }
-        self.two_labels[mask & 255].get_or_insert_with(|| {
+        self.two_labels[mask & 1023].get_or_insert_with(|| {
             // Corner 0's rank in the key's highest bits.
             let key = (0..8).fold(0u32, |acc, c| acc << 3 | ((mask >> c) & 1) as u32);
-            Template::of(key)
+            Template::of(key | ((mask >> 8) as u32) << 24)
         })
     }
 }
@@ -292,6 +327,7 @@ enum Visit<'a> {
 /// corners hold one label are skipped in runs; templates are derived on first use.
 fn visit_mixed_cells(
     volume: &LabelVolume,
+    joins: &[bool],
     ks: std::ops::Range<i64>,
     templates: &mut Templates,
     mut visit: impl FnMut(Visit),
@@ -366,20 +402,23 @@ fn visit_mixed_cells(
                 let (lo, hi) = labels
                     .iter()
                     .fold((u16::MAX, 0), |(lo, hi), &l| (lo.min(l), hi.max(l)));
+                let joins = |l: u16| joins.get(l as usize).copied().unwrap_or(false);
                 let template = if labels.iter().all(|&l| l == lo || l == hi) {
                     distinct[..2].copy_from_slice(&[lo, hi]);
                     let mask = labels
                         .iter()
                         .enumerate()
                         .fold(0usize, |m, (c, &l)| m | ((l == hi) as usize) << c);
-                    templates.two_labels(mask)
+                    let flags = joins(lo) as usize | (joins(hi) as usize) << 1;
+                    templates.two_labels(mask | flags << 8)
                 } else {
                     distinct.sort_unstable();
-                    dedup_sorted(&mut distinct);
+                    let n = dedup_sorted(&mut distinct);
                     let key = labels.iter().fold(0u32, |acc, l| {
                         acc << 3 | distinct.iter().position(|d| d == l).unwrap_or(0) as u32
                     });
-                    templates.of(key)
+                    let flags = (0..n).fold(0u32, |f, r| f | (joins(distinct[r]) as u32) << r);
+                    templates.of(key | flags << 24)
                 };
                 visit(Visit::Cell {
                     ijk: [i, j, k],
@@ -405,7 +444,8 @@ pub struct SurfaceSize {
 /// Counts the cells and surface triangles [`interfaces`] and [`label_surfaces`] would make,
 /// exactly, without making them (slabs in parallel; integer sums, so the same for any thread
 /// count). Costs about what the scan of [`interfaces`] costs without its outputs.
-pub fn surface_size(volume: &LabelVolume) -> SurfaceSize {
+pub fn surface_size(volume: &LabelVolume, connectivity: &[Connectivity]) -> SurfaceSize {
+    let joins = joins_of(volume, connectivity);
     use rayon::prelude::*;
     let nz = volume.dims[2] as i64;
     let n_slabs = (nz + 1 + SLAB - 1) / SLAB;
@@ -414,7 +454,7 @@ pub fn surface_size(volume: &LabelVolume) -> SurfaceSize {
         .map_init(Templates::default, |templates, s| {
             let k0 = -1 + s * SLAB;
             let mut size = SurfaceSize::default();
-            visit_mixed_cells(volume, k0..(k0 + SLAB).min(nz), templates, |v| {
+            visit_mixed_cells(volume, &joins, k0..(k0 + SLAB).min(nz), templates, |v| {
                 if let Visit::Cell {
                     template, distinct, ..
                 } = v
@@ -438,7 +478,12 @@ pub fn surface_size(volume: &LabelVolume) -> SurfaceSize {
 }
 
 /// The cells whose lower corner lies in the z range `ks` (from -1: the pad below the volume).
-fn slab(volume: &LabelVolume, ks: std::ops::Range<i64>, scratch: &mut SlabScratch) -> SlabOutput {
+fn slab(
+    volume: &LabelVolume,
+    joins: &[bool],
+    ks: std::ops::Range<i64>,
+    scratch: &mut SlabScratch,
+) -> SlabOutput {
     let SlabScratch {
         templates,
         table,
@@ -477,7 +522,7 @@ fn slab(volume: &LabelVolume, ks: std::ops::Range<i64>, scratch: &mut SlabScratc
     let mut row_start = [0u32; 2];
     let mut valid_above = [0u32; 2];
     let k_start = ks.start;
-    visit_mixed_cells(volume, ks, templates, |v| {
+    visit_mixed_cells(volume, joins, ks, templates, |v| {
         let (i, j, k, template, distinct) = match v {
             Visit::Row(j) => {
                 let count = out.positions.len() as u32;

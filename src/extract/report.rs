@@ -3,7 +3,8 @@
 //! whether the surface is a closed oriented 2-manifold, and how it was extracted.
 
 use crate::extract::constrained::{LabelCounts, LabelSmoothing, Noise, Surface, Thin};
-use crate::mesh::{geometry::signed_volume, manifold::is_closed_oriented_manifold};
+use crate::extract::Connectivity;
+use crate::mesh::{geometry::signed_volume, manifold::is_closed_oriented_manifold, Topology};
 use crate::volume::{Grid, Label, LabelVolume};
 use serde::Serialize;
 
@@ -36,16 +37,26 @@ pub struct Extraction {
     pub noise: Option<Noise>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub thin: Option<Thin>,
+    /// Which voxels form one object: 26 (touching by a face, an edge or a corner) or 6.
+    pub connectivity: Connectivity,
+    /// Objects the label's voxels form by that connectivity.
+    pub voxel_objects: u64,
+    /// Closed pieces of the surface that enclose an object (a cavity's wall is not counted):
+    /// more than `voxel_objects` where the label crosses another diagonally in one cell.
+    pub surface_pieces: u64,
     /// Voxels relaxed as surface noise, left pinned, and protected as thin (all 0 for binary).
     #[serde(flatten)]
     pub counts: LabelCounts,
 }
 
 impl Extraction {
-    /// The settings in effect for a label of `volume` and their counts.
+    /// The settings in effect for a label of `volume`, the objects its voxels form, its
+    /// surface `mesh` and the refinements' counts.
     pub fn new(
         volume: &LabelVolume,
         smoothing: &LabelSmoothing,
+        voxel_objects: u64,
+        mesh: &crate::Mesh,
         counts: LabelCounts,
     ) -> Extraction {
         let constrained = smoothing.surface == Surface::Constrained;
@@ -54,8 +65,22 @@ impl Extraction {
             sigma_mm: constrained.then(|| smoothing.sigma_on(volume)),
             noise: constrained.then_some(smoothing.noise),
             thin: constrained.then_some(smoothing.thin),
+            connectivity: smoothing.connectivity,
+            voxel_objects,
+            surface_pieces: outer_shells(mesh),
             counts,
         }
+    }
+
+    /// What to say when the surface has more or fewer pieces than the voxels have objects.
+    pub fn pieces_warning(&self) -> Option<String> {
+        let (pieces, objects) = (self.surface_pieces, self.voxel_objects);
+        let c = self.connectivity.number();
+        (pieces > objects).then(|| format!(
+            "the surface has {pieces} separate pieces where the voxels form {objects} object(s) ({c}-connected): it is cut where it crosses another label diagonally within one voxel cell"
+        )).or_else(|| (pieces < objects).then(|| format!(
+            "the surface has {pieces} separate pieces where the voxels form {objects} object(s) ({c}-connected): it joins voxels that touch diagonally where two other labels meet them"
+        )))
     }
 }
 
@@ -95,4 +120,12 @@ pub fn extracted_label(
         closed_oriented_manifold: is_closed_oriented_manifold(mesh),
         extraction,
     }
+}
+
+/// Closed pieces of a surface that enclose positive volume: one per object (the wall of a
+/// cavity inside an object encloses negative volume).
+pub fn outer_shells(mesh: &crate::Mesh) -> u64 {
+    let topology = Topology::build(mesh);
+    let volumes = crate::mesh::geometry::shell_volumes(mesh, &topology);
+    volumes.iter().filter(|&&v| v > 0.0).count() as u64
 }

@@ -659,6 +659,9 @@ fn process_structure(
                 100.0 * LABEL_VOLUME_TOLERANCE
             ));
         }
+        if let Some(w) = source.extraction.pieces_warning() {
+            report.warnings.push(format!("{}: {w}", origin(file)));
+        }
     }
     report.metrics = Some(metrics);
     let displacement: Vec<f32> = crate::metrics::displacements(before.positions(), &positions)

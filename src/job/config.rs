@@ -160,6 +160,9 @@ pub struct Settings {
     pub noise: Option<String>,
     /// Label-map structures: "protect" (default) or "off" for parts one voxel thick.
     pub thin: Option<String>,
+    /// Label-map structures: 26 (default; voxels touching by a face, an edge or a corner are
+    /// one object) or 6 (by a face only).
+    pub connectivity: Option<toml::Value>,
     /// "cfd": ready the structure for a flow solver (patches held while smoothing, then
     /// extended, closed, remeshed and checked; patch files written); "none" (default).
     pub profile: Option<String>,

@@ -5,7 +5,7 @@
 //! Surfaces go back to world millimetres (LPS or RAS, as the plan says) when written.
 
 use super::plan::Plan;
-use crate::extract::constrained::{LabelSmoothing, Surface};
+use crate::extract::constrained::{connectivity_of, LabelSmoothing, Surface};
 use crate::extract::report::Extraction;
 use crate::io::{with_file_bytes, LoadedMesh, MeshMeta, SourceFormat};
 use crate::mesh::{Mesh, MeshError};
@@ -212,13 +212,17 @@ pub fn load_label_map(plan: &Plan, path: &Path, room: u64) -> LoadedLabelMap {
                 })
                 .map_err(|e| format!("{}: cannot read: {e}", plan.display(data)))?;
             }
-            let size = map.layers.iter().map(crate::extract::surface_size).fold(
-                crate::extract::SurfaceSize::default(),
-                |a, b| crate::extract::SurfaceSize {
-                    interface_cells: a.interface_cells + b.interface_cells,
-                    triangles: a.triangles + b.triangles,
-                },
-            );
+            let size = (map.layers.iter().enumerate())
+                .map(|(layer_index, layer)| {
+                    let (_, smoothing) = layer_extraction(plan, layer_index, layer);
+                    crate::extract::surface_size(layer, &connectivity_of(&smoothing))
+                })
+                .fold(crate::extract::SurfaceSize::default(), |a, b| {
+                    crate::extract::SurfaceSize {
+                        interface_cells: a.interface_cells + b.interface_cells,
+                        triangles: a.triangles + b.triangles,
+                    }
+                });
             let need = to_read.saturating_add(size.triangles.saturating_mul(MEMORY_PER_TRIANGLE));
             if need > room {
                 over_budget = true;
@@ -258,6 +262,22 @@ fn structure_name(plan: &Plan, (layer, value): (usize, i64), file_name: &str) ->
     crate::volume::label_file_stem(name, value)
 }
 
+/// The structure name of each label of a layer, and how each dense label is extracted (entry
+/// 0 the background, as [defaults] says).
+fn layer_extraction(
+    plan: &Plan,
+    layer_index: usize,
+    layer: &crate::volume::LabelVolume,
+) -> (Vec<String>, Vec<LabelSmoothing>) {
+    let names: Vec<String> = (layer.labels.iter())
+        .map(|l| structure_name(plan, (layer_index, l.value), &l.name))
+        .collect();
+    let smoothing = std::iter::once(plan.default_settings().extraction)
+        .chain(names.iter().map(|n| plan.settings_for(n).extraction))
+        .collect();
+    (names, smoothing)
+}
+
 /// Extracts every label of every layer of a read label map (the `index`-th of its case) as a
 /// structure, with the map's report entry.
 pub fn label_structures(
@@ -271,11 +291,7 @@ pub fn label_structures(
     let mut warnings = map.warnings.clone();
     for (layer_index, layer) in map.layers.iter().enumerate() {
         let grid = layer.grid;
-        let names: Vec<String> = layer
-            .labels
-            .iter()
-            .map(|l| structure_name(plan, (layer_index, l.value), &l.name))
-            .collect();
+        let (names, smoothing) = layer_extraction(plan, layer_index, layer);
         // The names the file itself gives (Slicer's segments), where [labels] says otherwise.
         let file_names: Vec<Option<String>> = (layer.labels.iter())
             .map(|l| {
@@ -296,11 +312,12 @@ pub fn label_structures(
                 }
             }
         }
-        // How each label is extracted (the background as [defaults] says).
-        let smoothing: Vec<LabelSmoothing> = std::iter::once(plan.default_settings().extraction)
-            .chain(names.iter().map(|n| plan.settings_for(n).extraction))
+        let connectivity = connectivity_of(&smoothing);
+        let mut all = crate::extract::interfaces(layer, &connectivity);
+        let joins: Vec<bool> = (connectivity.iter())
+            .map(|&c| c == crate::extract::Connectivity::Corners)
             .collect();
-        let mut all = crate::extract::interfaces(layer);
+        let objects = crate::volume::components::label_components(layer, &joins);
         let binary_positions = smoothing[1..]
             .iter()
             .any(|s| s.surface == Surface::Constrained)
@@ -352,7 +369,14 @@ pub fn label_structures(
             let name = names[s.label as usize - 1].clone();
             let own = smoothing[s.label as usize];
             let binary = binary.filter(|_| own.surface == Surface::Constrained);
-            let extraction = Extraction::new(layer, &own, counts[s.label as usize]);
+            let extraction = Extraction::new(
+                layer,
+                &own,
+                objects[s.label as usize],
+                &s.mesh,
+                counts[s.label as usize],
+            );
+
             entries.push(LabelEntry {
                 value: label.value,
                 structure: name.clone(),

@@ -430,7 +430,9 @@ impl serde::Serialize for LabelKey {
 /// flattest face within the growth limits, coplanar faces, rises and dents (issue 61's caps).
 /// 3: turned grids of tubes with only corner facets, ties in the axis estimate, the file's
 /// label names in reports, the NIfTI sform/qform warning and the label volume warning.
-pub const OUTPUT_REVISION: u32 = 3;
+/// 4: label voxels touching by an edge or a corner are one object (26-connectivity), objects
+/// and surface pieces in reports (issue 62).
+pub const OUTPUT_REVISION: u32 = 4;
 
 /// Largest number of guard repair rounds.
 const MAX_GUARD_REPAIRS: usize = 20;

@@ -5,6 +5,7 @@
 use super::config::Settings;
 use crate::cfd::{CfdOptions, CfdProfile, Inlet};
 use crate::extract::constrained::{LabelSmoothing, Noise, Surface, Thin};
+use crate::extract::Connectivity;
 use crate::smooth::{MethodKind, MethodParams};
 use crate::weights::{
     AxisChoice, CapPolicy, Combine, ContextParams, DistanceScaling, StaircaseParams, Tau,
@@ -127,6 +128,10 @@ impl StructureSettings {
         }
         t.push(("noise", word(e.noise.name())));
         t.push(("thin", word(e.thin.name())));
+        t.push((
+            "connectivity",
+            Value::Integer(e.connectivity.number().into()),
+        ));
         match &self.cfd {
             None => t.push(("profile", word("none"))),
             Some(c) => {
@@ -169,7 +174,9 @@ impl StructureSettings {
         if e.sigma_mm.is_none() {
             text.push_str("# sigma_mm: twice the label map's smallest voxel spacing\n");
         }
-        text.push_str("# surface, sigma_mm, noise, thin: structures made from label maps\n");
+        text.push_str(
+            "# surface, sigma_mm, noise, thin, connectivity: structures made from label maps\n",
+        );
         text
     }
 }
@@ -204,6 +211,7 @@ pub fn overlay(base: &Settings, over: &Settings) -> Settings {
         sigma_mm,
         noise,
         thin,
+        connectivity,
         profile,
         edge_mm,
         edge_per_radius,
@@ -373,6 +381,18 @@ pub fn resolve(s: &Settings) -> Result<StructureSettings, String> {
             None | Some("protect") => Thin::Protect,
             Some("off") => Thin::Off,
             Some(other) => return Err(format!("thin = {other:?} must be \"protect\" or \"off\"")),
+        },
+        connectivity: match &s.connectivity {
+            None => Connectivity::Corners,
+            Some(v) => match (v.as_integer(), v.as_str()) {
+                (Some(26), _) | (_, Some("26")) => Connectivity::Corners,
+                (Some(6), _) | (_, Some("6")) => Connectivity::Faces,
+                _ => {
+                    return Err(format!(
+                        "connectivity = {v} must be 26 (voxels touching by a face, an edge or a corner are one object) or 6 (by a face only)"
+                    ))
+                }
+            },
         },
     };
     Ok(StructureSettings {

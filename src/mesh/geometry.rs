@@ -192,6 +192,30 @@ pub fn signed_volume(mesh: &Mesh) -> f64 {
     })
 }
 
+/// Signed enclosed volume of each connected piece of a closed mesh (mm³, in the order of
+/// [`Topology::vertex_component`]): an object's outer shell encloses positive volume, the wall
+/// of a cavity inside it negative, so the positive entries count the objects.
+pub fn shell_volumes(mesh: &Mesh, topology: &Topology) -> Vec<f64> {
+    let component = topology.vertex_component();
+    let mut volumes = vec![0.0; topology.n_components()];
+    let Some(bbox) = bounding_box(mesh) else {
+        return volumes;
+    };
+    let o = bbox.center();
+    let p = mesh.positions();
+    let rel = |v: u32| {
+        let q = p[v as usize];
+        [q[0] as f64 - o[0], q[1] as f64 - o[1], q[2] as f64 - o[2]]
+    };
+    for t in mesh.triangles() {
+        let (a, b, c) = (rel(t[0]), rel(t[1]), rel(t[2]));
+        if let Some(v) = volumes.get_mut(component[t[0] as usize] as usize) {
+            *v += dot64(a, cross64(b, c)) / 6.0;
+        }
+    }
+    volumes
+}
+
 /// a - b in f64.
 #[inline]
 pub(crate) fn sub64(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {

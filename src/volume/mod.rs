@@ -3,6 +3,7 @@
 //! and their label names. Sizes in headers are checked against the data before anything is
 //! allocated; every problem names the file and what is wrong.
 
+pub mod components;
 pub mod grid;
 pub mod nifti;
 pub mod nrrd;

@@ -3,13 +3,15 @@
 //! share their interface triangles exactly; every voxel centre lies inside its own label's
 //! surface and outside every other (winding numbers).
 
-use destair::extract::constrained::{place_on_weights, LabelSmoothing, Noise, Surface, Thin};
-use destair::extract::{interfaces, label_surfaces};
+use destair::extract::constrained::{
+    connectivity_of, place_on_weights, LabelSmoothing, Noise, Surface, Thin,
+};
+use destair::extract::{interfaces, label_surfaces, Connectivity};
 use destair::mesh::Topology;
 use destair::volume::{Grid, LabelVolume, Space};
 
 /// Generalised winding number of a closed triangle mesh around `p` (1 inside, 0 outside).
-fn winding(mesh: &destair::Mesh, p: [f64; 3]) -> f64 {
+pub(crate) fn winding(mesh: &destair::Mesh, p: [f64; 3]) -> f64 {
     let pos = mesh.positions();
     let mut total = 0.0;
     for t in mesh.triangles() {
@@ -126,6 +128,7 @@ fn consistency(constrained: bool) {
     let mut rng = fastrand::Rng::with_seed(if constrained { 11 } else { 7 });
     let mut moved = 0;
     let mut failures = Vec::new();
+    let mut pieces = Vec::new();
     let mut tested_points = 0;
     let rounds = 300;
     for round in 0..rounds {
@@ -133,27 +136,32 @@ fn consistency(constrained: bool) {
         let dims = [rng.usize(1..7), rng.usize(1..7), rng.usize(1..6)];
         let fill = 0.3 + 0.6 * rng.f64();
         let volume = random_volume(&mut rng, n_labels, dims, fill);
-        let mut all = interfaces(&volume);
+        // Per label: 26- or 6-connected; constrained runs also binary or constrained, noise
+        // and thin either way, sigma from the default up to three times the largest spacing.
+        let max_spacing = volume.grid.spacing().into_iter().fold(0.0, f64::max);
+        let smoothing: Vec<LabelSmoothing> = (0..=volume.labels.len())
+            .map(|_| LabelSmoothing {
+                surface: if !constrained || rng.usize(0..5) == 0 {
+                    Surface::Binary
+                } else {
+                    Surface::Constrained
+                },
+                sigma_mm: rng.bool().then(|| 3.0 * max_spacing * rng.f64() + 1e-3),
+                noise: if rng.bool() {
+                    Noise::Smooth
+                } else {
+                    Noise::Keep
+                },
+                thin: if rng.bool() { Thin::Protect } else { Thin::Off },
+                connectivity: if rng.usize(0..4) == 0 {
+                    Connectivity::Faces
+                } else {
+                    Connectivity::Corners
+                },
+            })
+            .collect();
+        let mut all = interfaces(&volume, &connectivity_of(&smoothing));
         if constrained {
-            // Per label: binary or constrained, noise and thin either way, sigma from the
-            // default up to three times the largest spacing.
-            let max_spacing = volume.grid.spacing().into_iter().fold(0.0, f64::max);
-            let smoothing: Vec<LabelSmoothing> = (0..=volume.labels.len())
-                .map(|_| LabelSmoothing {
-                    surface: if rng.usize(0..5) == 0 {
-                        Surface::Binary
-                    } else {
-                        Surface::Constrained
-                    },
-                    sigma_mm: rng.bool().then(|| 3.0 * max_spacing * rng.f64() + 1e-3),
-                    noise: if rng.bool() {
-                        Noise::Smooth
-                    } else {
-                        Noise::Keep
-                    },
-                    thin: if rng.bool() { Thin::Protect } else { Thin::Off },
-                })
-                .collect();
             let before = all.positions.clone();
             place_on_weights(&volume, &mut all, &smoothing);
             moved += before
@@ -163,7 +171,40 @@ fn consistency(constrained: bool) {
                 .count();
         }
         let surfaces = label_surfaces(&volume, &all);
+        // Surfaces per label: one per object where the label is the only structure in a cell
+        // (tested below); where several labels cross diagonally in one cell, one of them is
+        // cut there, so between its 26- and 6-connected object counts.
+        let corners = destair::volume::components::label_components(&volume, &[]);
+        let faces = destair::volume::components::label_components(&volume, &[false; 8]);
         for s in &surfaces {
+            let n = destair::extract::report::outer_shells(&s.mesh);
+            let l = s.label as usize;
+            if n < corners[l] || n > faces[l] {
+                failures.push(format!(
+                    "round {round} label {l}: {n} surfaces, {} objects by 26, {} by 6",
+                    corners[l], faces[l]
+                ));
+            }
+        }
+        let joins: Vec<bool> = smoothing
+            .iter()
+            .map(|s| s.connectivity == Connectivity::Corners)
+            .collect();
+        let objects = destair::volume::components::label_components(&volume, &joins);
+        for s in &surfaces {
+            let n = destair::extract::report::outer_shells(&s.mesh);
+            if n != objects[s.label as usize] {
+                // One structure: exactly one surface per object, whichever connectivity.
+                let only = volume.labels.len() == 1;
+                (if only { &mut failures } else { &mut pieces }).push(format!(
+                    "round {round} label {} ({:?}): {n} surfaces for {} objects {:?} {:?}",
+                    s.label,
+                    smoothing[s.label as usize].connectivity,
+                    objects[s.label as usize],
+                    volume.dims,
+                    if only { volume.voxels.clone() } else { vec![] }
+                ));
+            }
             let t = Topology::build(&s.mesh);
             let ok = t.boundary_loops().is_empty()
                 && t.non_manifold_edges().is_empty()
@@ -217,6 +258,9 @@ fn consistency(constrained: bool) {
             }
         }
     }
+    // Several labels crossing diagonally in one cell: measured 103 labels of 300 random
+    // noise volumes with up to 6 labels each; printed, as they are within the bounds above.
+    eprintln!("{} labels cut where labels cross diagonally", pieces.len());
     let n = failures.len();
     assert!(tested_points > 1000, "{tested_points}");
     assert!(
@@ -287,7 +331,7 @@ fn surfaces_sit_where_the_affine_puts_them_with_the_voxels_volume() {
         for space in [Space::Lps, Space::Ras] {
             let map = read_label_map(&path, space).unwrap();
             let v = &map.layers[0];
-            let all = interfaces(v);
+            let all = interfaces(v, &[]);
             let voxel_mm3 = v.grid.voxel_volume();
             let inv = inverse(&v.grid.matrix);
             for s in label_surfaces(v, &all) {
@@ -429,7 +473,7 @@ fn results_do_not_depend_on_the_thread_count() {
             .unwrap()
             .install(|| {
                 // Constrained, with noise relaxed and thin parts held (the defaults).
-                let mut all = interfaces(&volume);
+                let mut all = interfaces(&volume, &[]);
                 let counts = place_on_weights(&volume, &mut all, &[]);
                 let meshes: Vec<_> = label_surfaces(&volume, &all)
                     .into_iter()
@@ -482,8 +526,8 @@ fn constrained_surfaces_are_smooth_and_keep_volume() {
     }
     let grid = Grid::axis_aligned(spacing, [0.0; 3], Space::Lps);
     let volume = LabelVolume::from_values(dims, grid, values.into_iter()).unwrap();
-    let binary = label_surfaces(&volume, &interfaces(&volume));
-    let mut all = interfaces(&volume);
+    let binary = label_surfaces(&volume, &interfaces(&volume, &[]));
+    let mut all = interfaces(&volume, &[]);
     place_on_weights(&volume, &mut all, &[]);
     let smooth = label_surfaces(&volume, &all);
     for (b, s) in binary.iter().zip(&smooth) {
@@ -527,8 +571,8 @@ fn constrained_surfaces_halve_the_curvature_on_the_neck_phantom() {
     use destair::metrics::normal_curvature::average_normal_curvature;
     let (volume, _) =
         destair::phantom::cases::label_map_case("labelmap-neck", &Default::default()).unwrap();
-    let binary = label_surfaces(&volume, &interfaces(&volume));
-    let mut all = interfaces(&volume);
+    let binary = label_surfaces(&volume, &interfaces(&volume, &[]));
+    let mut all = interfaces(&volume, &[]);
     place_on_weights(&volume, &mut all, &[]);
     let smooth = label_surfaces(&volume, &all);
     let curvature = |m: &destair::Mesh| average_normal_curvature(m, &Topology::build(m));
@@ -598,7 +642,7 @@ fn kept_volume(volume: &LabelVolume, value: i64, thin: Thin) -> (f64, u64) {
         thin,
         ..LabelSmoothing::default()
     };
-    let mut all = interfaces(volume);
+    let mut all = interfaces(volume, &[]);
     let counts = place_on_weights(volume, &mut all, &vec![smoothing; volume.labels.len() + 1]);
     let dense = volume.labels.iter().position(|l| l.value == value).unwrap() + 1;
     let surface = label_surfaces(volume, &all)
@@ -701,7 +745,7 @@ fn a_lone_pimple_is_flattened_or_kept_as_asked() {
             noise,
             ..LabelSmoothing::default()
         };
-        let mut all = interfaces(&volume);
+        let mut all = interfaces(&volume, &[]);
         let counts = place_on_weights(&volume, &mut all, &[smoothing; 2]);
         let surface = label_surfaces(&volume, &all).remove(0).mesh;
         // The steepest top face around the pimple (degrees from the face's plane), and how far
@@ -771,8 +815,8 @@ fn the_surface_size_count_matches_the_extraction() {
             .collect();
         let grid = Grid::axis_aligned([0.7, 0.9, 2.5], [0.0; 3], Space::Lps);
         let v = LabelVolume::from_values(dims, grid, values.into_iter()).unwrap();
-        let size = destair::extract::surface_size(&v);
-        let all = interfaces(&v);
+        let size = destair::extract::surface_size(&v, &[]);
+        let all = interfaces(&v, &[]);
         let made: u64 = label_surfaces(&v, &all)
             .iter()
             .map(|s| s.mesh.n_triangles() as u64)

@@ -15,6 +15,7 @@ mod honesty;
 mod io_corrupt;
 mod io_dialects;
 mod label_cases;
+mod label_shapes;
 mod phantom;
 mod pictures;
 mod remesh;

@@ -106,7 +106,7 @@ fn pairs_known_to_share_triangles_get_the_measured_rows() {
         let n: usize = dims.iter().product();
         let grid = Grid::axis_aligned([0.8, 0.8, 2.0], [0.0; 3], Space::Lps);
         let v = LabelVolume::from_values(dims, grid, (0..n).map(|_| rng.i64(0..5))).unwrap();
-        let all = destair::extract::interfaces(&v);
+        let all = destair::extract::interfaces(&v, &[]);
         let surfaces = destair::extract::label_surfaces(&v, &all);
         let names: Vec<String> = surfaces.iter().map(|s| format!("l{}", s.label)).collect();
         let sharing: Vec<Vec<String>> = surfaces

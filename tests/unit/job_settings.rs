@@ -57,3 +57,34 @@ fn the_cfd_profile_is_set_per_structure_and_checked() {
         assert!(err.contains(needle), "{extra}: {err}");
     }
 }
+
+#[test]
+fn connectivity_is_26_by_default_6_where_asked_and_nothing_else() {
+    use destair::extract::Connectivity;
+    let base = "[input]\nroots = [\"c\"]\n[output]\nroot = \"o\"\n";
+    let p = plan(&format!(
+        "{base}[[structure]]\npattern = \"airway*\"\nconnectivity = 6\n"
+    ))
+    .unwrap();
+    assert_eq!(
+        p.settings_for("vessel").extraction.connectivity,
+        Connectivity::Corners
+    );
+    let airway = p.settings_for("airway_l");
+    assert_eq!(airway.extraction.connectivity, Connectivity::Faces);
+    let view = airway.config_view();
+    assert!(view.contains("connectivity = 6"), "{view}");
+    let again = plan(&format!("{base}[defaults]\n{view}")).unwrap();
+    assert_eq!(again.settings_for("x").extraction, airway.extraction);
+    let quoted = plan(&format!("{base}[defaults]\nconnectivity = \"6\"\n")).unwrap();
+    assert_eq!(
+        quoted.settings_for("x").extraction.connectivity,
+        Connectivity::Faces
+    );
+    for bad in ["8", "\"corners\"", "18", "26.0"] {
+        let err = plan(&format!("{base}[defaults]\nconnectivity = {bad}\n"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("connectivity"), "{bad}: {err}");
+    }
+}

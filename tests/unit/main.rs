@@ -50,6 +50,7 @@ mod spatial_cells;
 mod spatial_intersect;
 mod units;
 mod volume;
+mod volume_components;
 mod volume_grid;
 mod weights;
 mod weights_distance;
