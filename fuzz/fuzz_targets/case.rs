@@ -53,7 +53,7 @@ fn cohort() -> &'static PathBuf {
             i64::from((1..11).contains(&x) && (6..8).contains(&y) && (1..5).contains(&z))
         });
         let volume = destair::volume::LabelVolume::from_values(dims, grid, values).unwrap();
-        let interfaces = destair::extract::interfaces(&volume);
+        let interfaces = destair::extract::interfaces(&volume, &[]);
         let vein = &destair::extract::label_surfaces(&volume, &interfaces)[0].mesh;
         let bytes = destair::io::ply::write::encode_ply(vein, &Default::default(), &[]).unwrap();
         std::fs::write(case.join("vein.ply"), bytes).unwrap();

@@ -10,8 +10,13 @@ fuzz_target!(|data: &[u8]| {
     let Some((&which, bytes)) = data.split_first() else {
         return;
     };
-    let name = ["case.nii", "case.nii.gz", "case.nrrd", "case.seg.nrrd", "case.nhdr"]
-        [which as usize % 5];
+    let name = [
+        "case.nii",
+        "case.nii.gz",
+        "case.nrrd",
+        "case.seg.nrrd",
+        "case.nhdr",
+    ][which as usize % 5];
     let dir = std::env::temp_dir().join(format!("destair-fuzz-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join(name);
@@ -27,15 +32,25 @@ fuzz_target!(|data: &[u8]| {
     if let Some(data) = &map.data_file {
         assert!(data.starts_with(dir.canonicalize().unwrap()), "{data:?}");
     }
-    for layer in &map.layers {
+    for (index, layer) in map.layers.iter().enumerate() {
         if layer.voxels.len() > 200_000 {
             continue;
         }
-        let size = destair::extract::surface_size(layer);
+        // Both connectivities, label by label as the layer's index and the label say.
+        let connectivity: Vec<destair::extract::Connectivity> = (0..=layer.labels.len())
+            .map(|l| {
+                if (l + index) % 3 == 0 {
+                    destair::extract::Connectivity::Faces
+                } else {
+                    destair::extract::Connectivity::Corners
+                }
+            })
+            .collect();
+        let size = destair::extract::surface_size(layer, &connectivity);
         if size.triangles > 2_000_000 {
             continue;
         }
-        let interfaces = destair::extract::interfaces(layer);
+        let interfaces = destair::extract::interfaces(layer, &connectivity);
         let made: u64 = destair::extract::label_surfaces(layer, &interfaces)
             .iter()
             .map(|s| s.mesh.n_triangles() as u64)
