@@ -183,6 +183,12 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
             &format!("making its surfaces ({triangles} triangles)"),
         ));
     }
+    if let Some(sigma) = args.sigma_mm {
+        for layer in &map.layers {
+            destair::extract::constrained::check_sigma(sigma, layer)
+                .map_err(|e| UsageError(format!("{}: --sigma-mm: {e}", args.labelmap.display())))?;
+        }
+    }
     let read_s = started.elapsed().as_secs_f64();
     if let Some(names) = &args.labels {
         for (value, name) in &names.0 {

@@ -114,7 +114,10 @@ pub fn process_case(plan: &Plan, case: LoadedCase) -> CaseOutput {
                     file: loaded.file.clone(),
                     bytes: 0,
                     blake3: String::new(),
-                    mesh: Ok(st.mesh),
+                    mesh: match st.refused {
+                        Some(why) => Err(why),
+                        None => Ok(st.mesh),
+                    },
                     place: st.place,
                     source: Some(st.source),
                     binary: st.binary,

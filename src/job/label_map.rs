@@ -5,7 +5,7 @@
 //! Surfaces go back to world millimetres (LPS or RAS, as the plan says) when written.
 
 use super::plan::Plan;
-use crate::extract::constrained::{connectivity_of, LabelSmoothing, Surface};
+use crate::extract::constrained::{check_sigma, connectivity_of, LabelSmoothing, Surface};
 use crate::extract::report::Extraction;
 use crate::io::{with_file_bytes, LoadedMesh, MeshMeta, SourceFormat};
 use crate::mesh::{Mesh, MeshError};
@@ -153,6 +153,10 @@ pub struct LabelStructure {
     /// The structures of the same layer whose surfaces share interface triangles with this
     /// one's (by name).
     pub shares_triangles_with: Vec<String>,
+    /// Why the structure fails although its surface was made (its settings do not fit the
+    /// map: a `sigma_mm` beyond the range its spacing allows, extracted with the default so
+    /// that its neighbours' interfaces stay as they would be).
+    pub refused: Option<String>,
 }
 
 /// Reads and hashes a label map (with its detached data file) in `plan.space`, within
@@ -291,7 +295,15 @@ pub fn label_structures(
     let mut warnings = map.warnings.clone();
     for (layer_index, layer) in map.layers.iter().enumerate() {
         let grid = layer.grid;
-        let (names, smoothing) = layer_extraction(plan, layer_index, layer);
+        let (names, mut smoothing) = layer_extraction(plan, layer_index, layer);
+        let mut refused: Vec<Option<String>> = vec![None; smoothing.len()];
+        for (s, why) in smoothing.iter_mut().zip(&mut refused).skip(1) {
+            let checked = s.sigma_mm.map(|sigma| check_sigma(sigma, layer));
+            if let Some(Err(e)) = checked {
+                *why = Some(e);
+                s.sigma_mm = None;
+            }
+        }
         // The names the file itself gives (Slicer's segments), where [labels] says otherwise.
         let file_names: Vec<Option<String>> = (layer.labels.iter())
             .map(|l| {
@@ -402,6 +414,7 @@ pub fn label_structures(
                 },
                 binary,
                 place,
+                refused: refused[s.label as usize].clone(),
                 shares_triangles_with: sharing[s.label as usize]
                     .iter()
                     .map(|&other| names[other as usize - 1].clone())

@@ -967,3 +967,49 @@ method = "hc"
         assert_eq!(warned, !reaches_edge, "{name}: {}", s["warnings"]);
     }
 }
+
+/// A `sigma_mm` beyond twice the map's smallest spacing cuts the 5-tap Gaussian short (surfaces
+/// rougher, not smoother): the structure that asks for it fails with the range, its neighbours
+/// run as they would, and `extract` refuses it before any work.
+#[test]
+fn a_sigma_beyond_what_the_spacing_allows_is_refused_with_the_range() {
+    let tmp = tempfile::tempdir().unwrap();
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/labels/septum.nii.gz");
+    write(
+        &tmp.path().join("cases/a/seg.nii.gz"),
+        &std::fs::read(&src).unwrap(),
+    );
+    let text = concat!(
+        head!(),
+        "[[structure]]\npattern = \"tumor\"\nsigma_mm = 50\n[[structure]]\npattern = \"vein\"\nsigma_mm = 1.6\n"
+    );
+    let cfg = config(tmp.path(), text);
+    let out = destair(&["run", cfg.to_str().unwrap()]);
+    assert!(!out.status.success());
+    let r = report(tmp.path(), "a");
+    let tumor = structure(&r, "tumor");
+    assert_eq!(tumor["status"], "failed", "{tumor}");
+    let error = tumor["error"].as_str().unwrap();
+    assert!(
+        error.contains("sigma_mm = 50") && error.contains("up to 1.6 mm"),
+        "{error}"
+    );
+    // The largest sigma accepted (0.8 mm voxels: 1.6 mm) runs, and so does the default.
+    assert_eq!(structure(&r, "vein")["status"], "ok");
+    assert_eq!(structure(&r, "label_3")["status"], "ok");
+    let bad = destair(&[
+        "extract",
+        src.to_str().unwrap(),
+        "--out",
+        tmp.path().join("x").to_str().unwrap(),
+        "--sigma-mm",
+        "1.7",
+    ]);
+    assert_eq!(bad.status.code(), Some(2));
+    let said = stderr(&bad);
+    assert!(
+        said.contains("septum.nii.gz") && said.contains("up to 1.6 mm"),
+        "{said}"
+    );
+    assert!(!tmp.path().join("x").join("extract.json").exists());
+}
