@@ -470,18 +470,30 @@ fn tunnel(c: usize, labels: &[u16; 8], verts: &mut Vertices, out: &mut Interface
     let centre = [0.5; 3];
     let sides = [labels[c], labels[c ^ 1]];
     for i in 0..6 {
-        let tri = [ring[i], ring[(i + 1) % 6], ring[(i + 2) % 6]];
-        let [a, b, d] = tri.map(|v| verts.positions[v as usize]);
         // The normal points away from the tube's own label, which holds the centre.
-        let tri = if outward_dot(a, b, d, centre) > 0.0 {
-            [tri[0], tri[2], tri[1]]
-        } else {
-            tri
-        };
-        out.triangles.push(tri);
-        out.outer_apex.push(tri[2]);
-        out.sides.push(sides);
+        let tri = [ring[i], ring[(i + 1) % 6], ring[(i + 2) % 6]];
+        push_facing_away(out, verts, tri, sides, centre);
     }
+}
+
+/// Adds triangle `tri` separating `sides` (inner, outer), turned so that its normal points
+/// away from point `inner_point`, which lies on the inner label's side.
+fn push_facing_away(
+    out: &mut Interfaces,
+    verts: &Vertices,
+    tri: [u32; 3],
+    sides: [u16; 2],
+    inner_point: [f64; 3],
+) {
+    let [a, b, c] = tri.map(|v| verts.positions[v as usize]);
+    let tri = if outward_dot(a, b, c, inner_point) > 0.0 {
+        [tri[0], tri[2], tri[1]]
+    } else {
+        tri
+    };
+    out.triangles.push(tri);
+    out.outer_apex.push(tri[2]);
+    out.sides.push(sides);
 }
 
 /// The corners of face (`axis`, `side`) in ring order.
@@ -603,18 +615,6 @@ fn core(
         verts.get(apex_key(0, 15, index as u64), || shrink(at))
     };
     let corner_source = |c: usize| u64::MAX - c as u64;
-    let push =
-        |out: &mut Interfaces, verts: &Vertices, tri: [u32; 3], sides: [u16; 2], w: [f64; 3]| {
-            let [a, b, c] = tri.map(|v| verts.positions[v as usize]);
-            let tri = if outward_dot(a, b, c, w) > 0.0 {
-                [tri[0], tri[2], tri[1]]
-            } else {
-                tri
-            };
-            out.triangles.push(tri);
-            out.outer_apex.push(tri[2]);
-            out.sides.push(sides);
-        };
     // Ribbons: each segment to its shrunk copy, oriented away from its first label.
     for seg in faces.segments {
         let [pa, pb] = seg.ends.map(position);
@@ -623,8 +623,8 @@ fn core(
             core_vertex(verts, seg.ends[0], pa),
             core_vertex(verts, seg.ends[1], pb),
         );
-        push(out, verts, [a, b, b2], seg.labels, seg.witness);
-        push(out, verts, [a, b2, a2], seg.labels, seg.witness);
+        push_facing_away(out, verts, [a, b, b2], seg.labels, seg.witness);
+        push_facing_away(out, verts, [a, b2, a2], seg.labels, seg.witness);
     }
     // Patches: every face part of a label other than `x`, shrunk, fanned from one of its
     // corners, oriented away from the centre (which `x` holds).
@@ -679,7 +679,7 @@ fn core(
                         continue;
                     }
                     let (a, b) = (core_vertex(verts, ka, pa), core_vertex(verts, kb, pb));
-                    push(out, verts, [apex, a, b], [x, l[first]], centre);
+                    push_facing_away(out, verts, [apex, a, b], [x, l[first]], centre);
                 }
             }
         }
