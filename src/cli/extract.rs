@@ -257,8 +257,7 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
     let mut kept = Vec::new();
     for (layer_index, layer) in map.layers.iter().enumerate() {
         let (all, counts) = surfaces_of(layer);
-        let joins =
-            vec![connectivity == destair::extract::Connectivity::Corners; layer.labels.len() + 1];
+        let joins = destair::extract::joins_of(layer, &vec![connectivity; layer.labels.len() + 1]);
         let objects = destair::volume::components::label_components(layer, &joins);
         let surfaces = destair::extract::label_surfaces(layer, &all);
         if args.combined.is_some() {

@@ -85,8 +85,9 @@ impl Connectivity {
 }
 
 /// Per dense label, whether its voxels join across edges and corners (`connectivity[l]`;
-/// missing entries take the default; the background, entry 0, never does).
-fn joins_of(volume: &LabelVolume, connectivity: &[Connectivity]) -> Vec<bool> {
+/// missing entries take the default; the background, entry 0, never does): what the
+/// extraction and [`crate::volume::components::label_components`] take.
+pub fn joins_of(volume: &LabelVolume, connectivity: &[Connectivity]) -> Vec<bool> {
     (0..=volume.labels.len())
         .map(|l| l > 0 && connectivity.get(l).copied().unwrap_or_default() == Connectivity::Corners)
         .collect()

@@ -326,9 +326,7 @@ pub fn label_structures(
         }
         let connectivity = connectivity_of(&smoothing);
         let mut all = crate::extract::interfaces(layer, &connectivity);
-        let joins: Vec<bool> = (connectivity.iter())
-            .map(|&c| c == crate::extract::Connectivity::Corners)
-            .collect();
+        let joins = crate::extract::joins_of(layer, &connectivity);
         let objects = crate::volume::components::label_components(layer, &joins);
         let binary_positions = smoothing[1..]
             .iter()
