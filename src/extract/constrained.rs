@@ -1,12 +1,18 @@
 //! Constrained smoothing of label weights (thesis §6.3.2): each label's indicator (1 on its
-//! voxels, 0 elsewhere) is smoothed with a discrete Gaussian and then clamped, so that a voxel
+//! voxels, 0 elsewhere) is smoothed and then clamped, so that a voxel
 //! of the label keeps a weight above 1/2 and every other voxel stays below it. Every voxel
 //! therefore keeps its own label as the largest weight, and the surfaces where the two largest
 //! interpolated weights are equal still separate every pair of differently labelled voxel
 //! centres; they only move to sub-voxel positions, which makes them smooth. The chapter's two
 //! refinements run on top: lone pinned voxels ("pimples", §6.3.3, [`super::noise`]) get their
-//! constraint relaxed, and voxels where a label is one voxel thick (§6.3.4, [`super::thin`])
-//! get the strongest one, so thin sheets and tubes keep a real thickness.
+//! constraint relaxed, and where a label is thin (§6.3.4) the smoothing narrows so thin sheets
+//! and tubes keep a real thickness.
+//!
+//! Two departures from the chapter keep each label's size (issue 62): the smoothing kernel is
+//! shrink-free, `2 g - g * g` for the chapter's 5-tap Gaussian `g` (a Gaussian alone moves
+//! convex surfaces inwards by about sigma² times their mean curvature), and along each axis
+//! the Gaussian is at most [`THICKNESS_FRACTION`] of the label's local thickness there (the
+//! chapter's thin protection held one-voxel parts only; parts a few voxels thick shrank).
 //!
 //! The surfaces keep the topology of the consistent extraction ([`super::interfaces`]): each
 //! vertex on a cell edge moves along that edge to where the two labels' interpolated weights
@@ -21,17 +27,28 @@ use crate::volume::LabelVolume;
 use rayon::prelude::*;
 use serde::Serialize;
 
-/// Half-width of the discrete kernel in voxels along each axis: 5 x 5 x 5 taps, as the thesis
-/// uses.
+/// Half-width of the Gaussian in voxels along each axis: 5 x 5 x 5 taps, as the thesis uses.
 const RADIUS: i64 = 2;
 
-/// Fewest thin voxels of a label within the kernel's reach for a thin voxel to be protected
-/// (fewer are a one- or two-voxel bump: surface noise).
-const MIN_THIN_PART: usize = 3;
+/// Half-width of the shrink-free kernel `2 g - g * g` (voxels): the Gaussian convolved with
+/// itself reaches twice as far.
+pub const REACH: i64 = 2 * RADIUS;
 
-/// Below this smoothed weight a thin voxel is held at full weight (rods, walls and sheets one
-/// voxel thick fall to 0.05-0.3; the rim of a thick slice stays near 1/2).
-const THIN_BELOW: f32 = 0.35;
+/// Widest the Gaussian may be along an axis where a label is thin, as a fraction of the
+/// label's local thickness along that axis (its run of voxels through the edge's voxel, in
+/// mm): a Gaussian much wider than a part cannot tell it from its surroundings and shrinks it
+/// onto its voxel centres (0.8 x 0.8 x 2.5 mm: tubes of radius 1-2 mm kept 18-67 % of their
+/// cross-section at the full sigma).
+pub const THICKNESS_FRACTION: f64 = 0.175;
+
+/// Narrowing at or below which an edge's voxels are never noise: the part there is at most
+/// twice the Gaussian's sigma thick, a structure the Gaussian cannot see, not a bump on one.
+const NOISE_THICKNESS: f64 = 2.0 * THICKNESS_FRACTION;
+
+/// Fewest voxels of its own label among its 26 neighbours for a pinned voxel to be a bump on
+/// a surface (noise); fewer is a structure of its own (a single voxel, a 2 x 2 block), which
+/// keeps its size.
+const MIN_ATTACHED: usize = 4;
 
 /// How far from 1/2 the clamp keeps weights: surfaces stay a little off voxel centres (at 0,
 /// one-voxel-thin parts would collapse onto them).
@@ -178,24 +195,80 @@ pub struct LabelCounts {
     pub noise_voxels: u64,
     /// Noise voxels left pinned: their group of near noise voxels was too large to solve.
     pub noise_unsolved: u64,
-    /// Voxels of the label found one voxel thick and held at full weight.
+    /// Voxels of the label at the ends of edges where the Gaussian was narrowed because a
+    /// label there is thin.
     pub thin_voxels: u64,
 }
 
-/// The 5 taps of the Gaussian along each axis, normalised (per-axis sigma in voxels from the
-/// spacing).
-fn kernel(volume: &LabelVolume, sigma_mm: f64) -> [[f32; 5]; 3] {
-    let s = volume.grid.spacing();
-    std::array::from_fn(|axis| {
-        let sigma = (sigma_mm / s[axis]).max(1e-6);
-        let mut taps: [f64; 5] =
-            std::array::from_fn(|d| (-((d as f64 - 2.0) / sigma).powi(2) / 2.0).exp());
-        let sum: f64 = taps.iter().sum();
-        for t in &mut taps {
-            *t /= sum;
+/// A label's smoothing kernel, shrink-free: `2 g - g * g` (twicing) for the Gaussian `g`, so
+/// that a convex part loses no volume to the smoothing to second order (a plain Gaussian moves
+/// a surface of mean curvature `H` inwards by about `sigma² H`), while staircases, which are
+/// much finer than the Gaussian, are still smoothed away. Separable parts per axis.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Kernel {
+    /// The Gaussian's 5 taps per axis, normalised.
+    pub g: [[f32; 5]; 3],
+    /// `g * g` per axis: 9 taps.
+    pub h: [[f32; 9]; 3],
+}
+
+impl Kernel {
+    /// The kernel for a per-axis sigma in voxels.
+    fn new(sigma_voxels: [f64; 3]) -> Kernel {
+        let g: [[f64; 5]; 3] = std::array::from_fn(|axis| {
+            let sigma = sigma_voxels[axis].max(1e-6);
+            let mut taps: [f64; 5] =
+                std::array::from_fn(|d| (-((d as f64 - 2.0) / sigma).powi(2) / 2.0).exp());
+            let sum: f64 = taps.iter().sum();
+            for t in &mut taps {
+                *t /= sum;
+            }
+            taps
+        });
+        Kernel::from_taps(g.map(|a| a.map(|t| t as f32)))
+    }
+
+    /// The kernel of a Gaussian given by its 5 taps per axis (normalised).
+    pub fn from_taps(g: [[f32; 5]; 3]) -> Kernel {
+        let g64 = g.map(|a| a.map(f64::from));
+        let h = std::array::from_fn(|axis| {
+            std::array::from_fn(|i| {
+                (0..5)
+                    .filter_map(|j| {
+                        let k = i as i64 - j as i64;
+                        (0..5)
+                            .contains(&k)
+                            .then(|| g64[axis][j] * g64[axis][k as usize])
+                    })
+                    .sum::<f64>() as f32
+            })
+        });
+        Kernel { g, h }
+    }
+
+    /// The kernel of a label with `sigma_mm` on `volume`'s grid.
+    fn on(volume: &LabelVolume, sigma_mm: f64) -> Kernel {
+        let s = volume.grid.spacing();
+        Kernel::new(std::array::from_fn(|a| sigma_mm / s[a]))
+    }
+
+    /// The kernel's weight at offset `d` (voxels); 0 beyond its reach.
+    pub fn tap(&self, d: [i64; 3]) -> f64 {
+        if d.iter().any(|x| x.abs() > REACH) {
+            return 0.0;
         }
-        taps.map(|t| t as f32)
-    })
+        let h: f64 = (0..3)
+            .map(|a| self.h[a][(d[a] + REACH) as usize] as f64)
+            .product();
+        let g: f64 = if d.iter().all(|x| x.abs() <= RADIUS) {
+            (0..3)
+                .map(|a| self.g[a][(d[a] + RADIUS) as usize] as f64)
+                .product()
+        } else {
+            0.0
+        };
+        2.0 * g - h
+    }
 }
 
 /// The dense label at voxel `p`; background outside the volume.
@@ -209,42 +282,115 @@ fn label_at(volume: &LabelVolume, p: [i64; 3]) -> u16 {
 }
 
 /// The smoothed (unclamped) weights of dense labels `a` and `b`, each with its own kernel, at
-/// voxel `v`, in one pass over the kernel (voxels outside the volume are background).
-fn weights(
-    volume: &LabelVolume,
-    [ga, gb]: [&[[f32; 5]; 3]; 2],
-    [a, b]: [u16; 2],
-    v: [i64; 3],
-) -> [f32; 2] {
+/// voxel `v`, in one pass over the kernel's 9 x 9 x 9 voxels (voxels outside the volume are
+/// background): shrink-free (`2 g - g * g`) and the plain Gaussian's (`g`), which noise
+/// relaxation works on. Row by row: the row's sums for `g * g` (9 taps) and `g` (the middle 5).
+fn weights(volume: &LabelVolume, [ka, kb]: [&Kernel; 2], [a, b]: [u16; 2], v: [i64; 3]) -> Weights {
     let [nx, ny, nz] = volume.dims.map(|d| d as i64);
-    let inside = (0..3).all(|k| v[k] >= RADIUS && v[k] + RADIUS < [nx, ny, nz][k]);
-    let mut w = [0f32; 2];
-    for dz in -RADIUS..=RADIUS {
-        let i = (dz + RADIUS) as usize;
-        let (za, zb) = (ga[2][i], gb[2][i]);
-        for dy in -RADIUS..=RADIUS {
-            let j = (dy + RADIUS) as usize;
-            let (yza, yzb) = (za * ga[1][j], zb * gb[1][j]);
+    let inside = (0..3).all(|k| v[k] >= REACH && v[k] + REACH < [nx, ny, nz][k]);
+    let (mut w, mut plain) = ([0f32; 2], [0f32; 2]);
+    let mut row = [0u16; 9];
+    for dz in -REACH..=REACH {
+        let i = (dz + REACH) as usize;
+        for dy in -REACH..=REACH {
+            let j = (dy + REACH) as usize;
             let (y, z) = (v[1] + dy, v[2] + dz);
             if inside {
                 // The whole row lies in the volume: no bounds to check.
-                let start = (v[0] - RADIUS + nx * (y + ny * z)) as usize;
-                let row = &volume.voxels[start..start + 5];
-                for ((xa, xb), &l) in ga[0].iter().zip(&gb[0]).zip(row) {
-                    w[0] += if l == a { yza * xa } else { 0.0 };
-                    w[1] += if l == b { yzb * xb } else { 0.0 };
+                let start = (v[0] - REACH + nx * (y + ny * z)) as usize;
+                row.copy_from_slice(&volume.voxels[start..start + 9]);
+            } else {
+                for (dx, l) in (-REACH..=REACH).zip(row.iter_mut()) {
+                    *l = label_at(volume, [v[0] + dx, y, z]);
                 }
-                continue;
             }
-            for dx in -RADIUS..=RADIUS {
-                let l = label_at(volume, [v[0] + dx, y, z]);
-                let k = (dx + RADIUS) as usize;
-                w[0] += if l == a { yza * ga[0][k] } else { 0.0 };
-                w[1] += if l == b { yzb * gb[0][k] } else { 0.0 };
+            let (mut ha, mut hb, mut ga, mut gb) = (0f32, 0f32, 0f32, 0f32);
+            for (k, &l) in row.iter().enumerate() {
+                let (is_a, is_b) = (f32::from(l == a), f32::from(l == b));
+                ha += is_a * ka.h[0][k];
+                hb += is_b * kb.h[0][k];
             }
+            let middle = (2..7).contains(&i) && (2..7).contains(&j);
+            if middle {
+                for (k, &l) in row[2..7].iter().enumerate() {
+                    ga += f32::from(l == a) * ka.g[0][k];
+                    gb += f32::from(l == b) * kb.g[0][k];
+                }
+                plain[0] += ka.g[2][i - 2] * ka.g[1][j - 2] * ga;
+                plain[1] += kb.g[2][i - 2] * kb.g[1][j - 2] * gb;
+            }
+            w[0] -= ka.h[2][i] * ka.h[1][j] * ha;
+            w[1] -= kb.h[2][i] * kb.h[1][j] * hb;
         }
     }
-    w
+    Weights {
+        shrink_free: [w[0] + 2.0 * plain[0], w[1] + 2.0 * plain[1]],
+        gaussian: plain,
+    }
+}
+
+/// Two labels' smoothed weights at one voxel.
+#[derive(Debug, Clone, Copy)]
+struct Weights {
+    /// With the shrink-free kernel.
+    shrink_free: [f32; 2],
+    /// With the plain Gaussian (for noise relaxation).
+    gaussian: [f32; 2],
+}
+
+/// How many voxels of `label` lie in a row along `axis` through voxel `v` (which holds it),
+/// counting at most `cap`.
+fn run(volume: &LabelVolume, label: u16, v: [i64; 3], axis: usize, cap: usize) -> usize {
+    let mut n = 1;
+    for step in [-1, 1] {
+        let mut q = v;
+        q[axis] += step;
+        while n < cap && label_at(volume, q) == label {
+            n += 1;
+            q[axis] += step;
+        }
+    }
+    n
+}
+
+/// A label's thickness along axis `ax` at voxel `v` (which holds it), in voxels, counting at
+/// most `cap`: its run through `v` along the edge's own axis (`axes[0]`); along another axis,
+/// the longest run through the voxels from `v` into the label along the edge's axis (`step`
+/// -1 or 1), so a tube's chord at its rim counts as its diameter, not as the short chord there.
+fn thickness(
+    volume: &LabelVolume,
+    label: u16,
+    v: [i64; 3],
+    [edge_axis, ax]: [usize; 2],
+    step: i64,
+    cap: usize,
+) -> usize {
+    if ax == edge_axis {
+        return run(volume, label, v, ax, cap);
+    }
+    let mut longest = 0;
+    let mut q = v;
+    for _ in 0..cap {
+        longest = longest.max(run(volume, label, q, ax, cap));
+        q[edge_axis] += step;
+        if longest >= cap || label_at(volume, q) != label {
+            break;
+        }
+    }
+    longest
+}
+
+/// Whether voxel `v` (which holds `label`) has at least [`MIN_ATTACHED`] voxels of its label
+/// among its 26 neighbours.
+fn attached(volume: &LabelVolume, label: u16, v: [i64; 3]) -> bool {
+    let mut n = 0;
+    for o in 0..27i64 {
+        let d = [o % 3 - 1, o / 3 % 3 - 1, o / 9 - 1];
+        if d != [0, 0, 0] && label_at(volume, std::array::from_fn(|k| v[k] + d[k])) == label {
+            n += 1;
+        }
+    }
+    n >= MIN_ATTACHED
 }
 
 /// The cell edge an edge vertex lies on: its axis and lower voxel (the position is a whole
@@ -269,17 +415,15 @@ pub fn place_on_weights(
     let per: Vec<LabelSmoothing> = (0..n_labels)
         .map(|l| smoothing.get(l).copied().unwrap_or_default())
         .collect();
-    let kernels: Vec<[[f32; 5]; 3]> = per
-        .iter()
-        .map(|s| kernel(volume, s.sigma_on(volume)))
-        .collect();
+    let sigmas: Vec<f64> = per.iter().map(|s| s.sigma_on(volume)).collect();
+    let kernels: Vec<Kernel> = sigmas.iter().map(|&s| Kernel::on(volume, s)).collect();
     let smoothed = |l: u16| per[l as usize].surface == Surface::Constrained;
     if !(1..n_labels as u16).any(smoothed) {
         // All binary: the consistent extraction stays as it is.
         return vec![LabelCounts::default(); n_labels];
     }
     let relaxes = |l: u16| smoothed(l) && per[l as usize].noise == Noise::Smooth;
-    let protects = |l: u16| l > 0 && smoothed(l) && per[l as usize].thin == Thin::Protect;
+    let protects = |l: u16| smoothed(l) && per[l as usize].thin == Thin::Protect;
     let [nx, ny, _] = volume.dims.map(|d| d as u64);
     // Linear index of a voxel in the volume; `None` for the background outside it.
     let dims = volume.dims.map(|d| d as i64);
@@ -297,130 +441,172 @@ pub fn place_on_weights(
     };
 
     // Pass 1: the smoothed weights at both ends of every edge between two smoothed labels.
+    // Both kinds of weights, as [a at lo, b at lo, a at hi, b at hi].
     let kinds = &all.kinds;
-    let samples: Vec<Option<[f32; 4]>> = all
+    let samples: Vec<Option<[[f32; 4]; 2]>> = all
         .positions
         .par_iter()
         .zip(kinds.par_iter())
         .map(|(p, &kind)| {
             let (_, lo, hi, a, b) = (kind == VERTEX_EDGE).then(|| edge(p)).flatten()?;
             let g = [&kernels[a as usize], &kernels[b as usize]];
-            let [a_lo, b_lo] = weights(volume, g, [a, b], lo);
-            let [a_hi, b_hi] = weights(volume, g, [a, b], hi);
-            Some([a_lo, b_lo, a_hi, b_hi])
+            let (l, h) = (
+                weights(volume, g, [a, b], lo),
+                weights(volume, g, [a, b], hi),
+            );
+            let four = |l: [f32; 2], h: [f32; 2]| [l[0], l[1], h[0], h[1]];
+            Some([
+                four(l.shrink_free, h.shrink_free),
+                four(l.gaussian, h.gaussian),
+            ])
         })
         .collect();
 
-    // Thin parts (§6.3.4): a voxel is held at full weight when its smoothed weight fell well
-    // below 1/2 (the clamp alone would pin the surface onto its centre), it is thin by the
-    // dual-grid opening, and at least three such voxels of its label lie within 2 voxels (a
-    // lone one- or two-voxel bump is surface noise). The rim of a thick slice's widest contour
-    // is thin by the opening too, but its weight stays near 1/2, so it smooths like any voxel.
-    let mut low: Vec<(u16, u64)> = all
-        .positions
-        .par_iter()
-        .zip(samples.par_iter())
-        .flat_map_iter(|(p, w)| {
-            let ends = w.and_then(|w| {
-                let (_, lo, hi, a, b) = edge(p)?;
-                Some([(w[0], lo, a), (w[3], hi, b)])
-            });
-            ends.into_iter().flatten().filter_map(|(own, v, l)| {
-                (own < THIN_BELOW && protects(l)).then_some((l, linear(v)?))
-            })
-        })
-        .collect();
-    low.par_sort_unstable();
-    low.dedup();
-    let thin: Vec<(u16, u64)> = low
-        .into_par_iter()
-        .filter(|&(l, i)| super::thin::is_thin(volume, l, super::noise::coords(volume.dims, i)))
-        .collect();
-    let near = |l: u16, c: [i64; 3]| super::noise::in_box(&thin, |&e| e, volume.dims, l, c).count();
-    let held: Vec<(u16, u64)> = thin
-        .par_iter()
-        .filter(|&&(l, i)| near(l, super::noise::coords(volume.dims, i)) >= MIN_THIN_PART)
-        .copied()
-        .collect();
-    let is_held = |own_weight: f32, v: [i64; 3], l: u16| {
-        own_weight < THIN_BELOW && linear(v).is_some_and(|i| held.binary_search(&(l, i)).is_ok())
+    // Thin parts (§6.3.4): where a label's run of voxels through an edge's end is short along
+    // an axis, the Gaussian along that axis narrows to a fraction of the run, for both labels
+    // of the edge, so a thin part keeps its size instead of shrinking onto its voxel centres.
+    // Such edges pin no noise (a thin part is structure); relaxed noise keeps the full kernel
+    // (it is meant to be smoothed away).
+    let spacing = volume.grid.spacing();
+    let narrowed = |axis_sigma: [f64; 2], runs: [usize; 2], ax: usize| {
+        let thickness = runs[0].min(runs[1]) as f64 * spacing[ax];
+        (THICKNESS_FRACTION * thickness / axis_sigma[0].max(axis_sigma[1])).min(1.0)
+    };
+    let scale = |(axis, lo, hi, a, b): (usize, [i64; 3], [i64; 3], u16, u16)| {
+        if !(protects(a) && protects(b)) {
+            return None;
+        }
+        let (sa, sb) = (sigmas[a as usize], sigmas[b as usize]);
+        let factor: [f64; 3] = std::array::from_fn(|ax| {
+            // Runs beyond this length leave the Gaussian as it is.
+            let cap =
+                ((sa.max(sb) / (THICKNESS_FRACTION * spacing[ax])).ceil() as usize + 1).min(64);
+            let runs = [
+                thickness(volume, a, lo, [axis, ax], -1, cap),
+                thickness(volume, b, hi, [axis, ax], 1, cap),
+            ];
+            narrowed([sa, sb], runs, ax)
+        });
+        factor.iter().any(|&f| f < 1.0).then_some(factor)
     };
 
-    // Surface noise (§6.3.3): the voxels the clamp pins, where both labels relax noise.
+    // Surface noise (§6.3.3): the voxels the clamp pins, where both labels relax noise. A
+    // pinned voxel is a bump or a pit only where its own label sits on more of itself (or is
+    // the background): a structure of one or two voxels is not noise.
     let pinned: Vec<Pinned> = all
         .positions
         .par_iter()
         .zip(samples.par_iter())
         .flat_map_iter(|(p, w)| {
             let mut pins = Vec::new();
-            let Some((w, (_, lo, hi, a, b))) = w.zip(edge(p)) else {
+            let Some(([w, gaussian], e)) = w.zip(edge(p)) else {
                 return pins;
             };
-            if !(relaxes(a) && relaxes(b)) {
+            let (_, lo, hi, a, b) = e;
+            let thin = scale(e).is_some_and(|f| f.iter().any(|&x| x <= NOISE_THICKNESS));
+            if !(relaxes(a) && relaxes(b)) || thin {
                 return pins;
             }
-            let hold = [is_held(w[0], lo, a), is_held(w[3], hi, b)];
             // lo holds a and hi holds b: a's weight must win at lo, b's at hi.
-            for (voxel, label, w, own, h) in [
-                (lo, a, w[0], true, hold[0]),
-                (lo, b, w[1], false, hold[0]),
-                (hi, b, w[3], true, hold[1]),
-                (hi, a, w[2], false, hold[1]),
+            let _ = gaussian;
+            for (voxel, label, (w, raw), own) in [
+                (lo, a, (w[0], w[0]), true),
+                (lo, b, (w[1], w[1]), false),
+                (hi, b, (w[3], w[3]), true),
+                (hi, a, (w[2], w[2]), false),
             ] {
                 let wrong_side = (own && w < 0.5) || (!own && w > 0.5);
-                if let (false, true, Some(index)) = (h, wrong_side, linear(voxel)) {
+                // The voxel's own label sticks out here (or it is a pit of the background).
+                let holds = if own { label } else { label_at(volume, voxel) };
+                let bump = holds == 0 || attached(volume, holds, voxel);
+                if let (true, true, Some(index)) = (wrong_side, bump, linear(voxel)) {
                     pins.push(Pinned {
                         voxel: index,
                         label,
-                        raw: w,
+                        raw,
                     });
                 }
             }
             pins
         })
         .collect();
-    let relaxation = super::noise::relax(volume.dims, &kernels, pinned, n_labels);
+    // Offsets spread with the label's Gaussian (a gentle swelling) on top of the shrink-free
+    // weights.
+    let gaussians: Vec<[[f32; 9]; 3]> = kernels.iter().map(|k| k.h).collect();
+    let relaxation = super::noise::relax(volume.dims, &gaussians, pinned, n_labels);
 
-    // Pass 2: offsets, thin protection and the clamp; then the tie along the edge.
+    // Pass 2: narrowed kernels where thin, offsets and the clamp; then the tie along the edge.
     let margin = MARGIN;
-    all.positions
-        .par_iter_mut()
+    let placed: Vec<Option<(f32, bool)>> = all
+        .positions
+        .par_iter()
         .zip(samples.par_iter())
-        .for_each(|(p, sample)| {
-            let Some((raw, (axis, lo, hi, a, b))) = sample.zip(edge(p)) else {
-                return;
+        .map(|(p, sample)| {
+            let ([shrink_free, gaussian], e) = sample.zip(edge(p))?;
+            let (axis, lo, hi, a, b) = e;
+            // Within reach of relaxed noise: the Gaussian's weights and the offsets.
+            let offsets = (!relaxation.is_empty())
+                .then(|| {
+                    let mut d = [0f32; 4];
+                    // Offsets live inside the volume only.
+                    for (v, i) in [(lo, 0), (hi, 2)] {
+                        if let Some(v) = linear(v) {
+                            let row = (v / nx) as usize;
+                            d[i] = relaxation.delta(v, row, a);
+                            d[i + 1] = relaxation.delta(v, row, b);
+                        }
+                    }
+                    d
+                })
+                .filter(|d| d.iter().any(|&x| x != 0.0));
+            let factor = if offsets.is_some() { None } else { scale(e) };
+            let _ = gaussian;
+            let w = if let Some(d) = offsets {
+                std::array::from_fn(|i| shrink_free[i] + d[i])
+            } else if let Some(f) = factor {
+                let s = volume.grid.spacing();
+                let k = |l: u16| {
+                    Kernel::new(std::array::from_fn(|ax| sigmas[l as usize] * f[ax] / s[ax]))
+                };
+                let (ka, kb) = (k(a), k(b));
+                let (l, h) = (
+                    weights(volume, [&ka, &kb], [a, b], lo).shrink_free,
+                    weights(volume, [&ka, &kb], [a, b], hi).shrink_free,
+                );
+                [l[0], l[1], h[0], h[1]]
+            } else {
+                shrink_free
             };
-            let mut w = raw;
-            if !relaxation.is_empty() {
-                // Offsets live inside the volume only.
-                if let Some(v) = linear(lo) {
-                    let row = (v / nx) as usize;
-                    w[0] += relaxation.delta(v, row, a);
-                    w[1] += relaxation.delta(v, row, b);
-                }
-                if let Some(v) = linear(hi) {
-                    let row = (v / nx) as usize;
-                    w[2] += relaxation.delta(v, row, a);
-                    w[3] += relaxation.delta(v, row, b);
-                }
-            }
-            // A held thin voxel keeps its label fully (decided on the weights before offsets,
-            // as when pinning).
-            if is_held(raw[0], lo, a) {
-                (w[0], w[1]) = (1.0, 0.0);
-            }
-            if is_held(raw[3], hi, b) {
-                (w[2], w[3]) = (0.0, 1.0);
-            }
             // d = w_a - w_b: positive at lo and negative at hi after the clamp.
             let d_lo = w[0].max(0.5 + margin) - w[1].min(0.5 - margin);
             let d_hi = w[2].min(0.5 - margin) - w[3].max(0.5 + margin);
             let denominator = d_lo - d_hi;
-            if denominator > 0.0 && d_lo >= 0.0 {
+            (denominator > 0.0 && d_lo >= 0.0).then(|| {
                 let t = (d_lo / denominator).clamp(0.0, 1.0) as f64;
-                p[axis] = (lo[axis] as f64 + t) as f32;
-            }
-        });
+                ((lo[axis] as f64 + t) as f32, factor.is_some())
+            })
+        })
+        .collect();
+    // The voxels at the ends of narrowed edges, per label: the thin voxels reported.
+    let mut thin: Vec<(u16, u64)> = Vec::new();
+    for (p, placed) in all.positions.iter_mut().zip(&placed) {
+        let Some((x, narrow)) = *placed else {
+            continue;
+        };
+        let Some((axis, lo, hi, a, b)) = edge(p) else {
+            continue;
+        };
+        if narrow {
+            thin.extend(
+                [(a, lo), (b, hi)]
+                    .iter()
+                    .filter_map(|&(l, v)| Some((l, linear(v)?))),
+            );
+        }
+        p[axis] = x;
+    }
+    thin.sort_unstable();
+    thin.dedup();
     drop(samples);
     // Branching points: the mean of their neighbours (edge vertices on the same face for face
     // points; the whole rim for cell points), faces first. Their neighbours as CSR, counted,
@@ -501,7 +687,7 @@ pub fn place_on_weights(
         .map(|l| LabelCounts {
             noise_voxels: relaxation.relaxed_per_label[l],
             noise_unsolved: relaxation.unsolved_per_label[l],
-            thin_voxels: held.iter().filter(|(h, _)| *h as usize == l).count() as u64,
+            thin_voxels: thin.iter().filter(|(h, _)| *h as usize == l).count() as u64,
         })
         .collect()
 }

@@ -19,7 +19,6 @@ mod cell;
 pub mod constrained;
 pub mod noise;
 pub mod report;
-pub mod thin;
 
 use cell::{Template, KIND_APEX};
 

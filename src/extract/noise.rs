@@ -4,13 +4,18 @@
 //! on the wrong side of 1/2 (the clamp had to pin it) with few other pinned voxels of that
 //! label near it: at most 5 others in its 5 x 5 x 5 neighbourhood. Its weight gets an offset
 //! before smoothing, chosen so that the smoothed weight at the voxel itself is exactly 1/2;
-//! the offset spreads over its neighbours, so the spike becomes a wider, gentle swelling. Near
+//! the offset spreads over its neighbours with the label's Gaussian convolved with itself (9
+//! taps per axis), so the spike becomes a wider, gentle swelling. Near
 //! pinned voxels share their neighbours' offsets, so each group solves a small linear system
 //! (the kernel's weights between its members). The clamp still runs afterwards: every voxel
 //! keeps its label either way.
 
 /// Half-width of the kernel (voxels).
 const RADIUS: i64 = 2;
+/// Half-width of the kernel an offset spreads with (voxels): 9 taps per axis.
+const SPREAD: i64 = 4;
+/// A spreading kernel's taps per axis.
+pub type Spread = [[f32; 9]; 3];
 /// Most other pinned voxels of the same label in a 5 x 5 x 5 neighbourhood for a voxel to be
 /// noise: the chapter's "less than 6".
 const MAX_NEIGHBOURS: usize = 2;
@@ -37,7 +42,7 @@ pub struct Pinned {
 #[derive(Debug, Clone, Default)]
 pub struct Relaxation {
     dims: [usize; 3],
-    kernels: Vec<[[f32; 5]; 3]>,
+    kernels: Vec<Spread>,
     /// (label, voxel, offset) of every relaxed voxel, sorted.
     offsets: Vec<(u16, u64, f64)>,
     /// Rows (y + ny * z) within reach of any offset: a quick no for the rest.
@@ -62,7 +67,7 @@ impl Relaxation {
         }
         let c = coords(self.dims, voxel);
         let mut sum = 0.0;
-        for i in in_box(&self.offsets, |e| (e.0, e.1), self.dims, label, c) {
+        for i in in_box(&self.offsets, |e| (e.0, e.1), self.dims, label, c, SPREAD) {
             let (_, n, offset) = self.offsets[i];
             let n = coords(self.dims, n);
             sum += tap(
@@ -92,22 +97,24 @@ pub(super) fn coords(dims: [usize; 3], v: u64) -> [i64; 3] {
 }
 
 /// Indices into `sorted` (ordered by `key`: label, then linear voxel index) of the entries of
-/// `label` in the 5 x 5 x 5 box around voxel `c` of a volume of `dims` voxels.
-pub(super) fn in_box<'a, T>(
+/// `label` in the box of half-width `radius` voxels around voxel `c` of a volume of `dims`
+/// voxels.
+fn in_box<'a, T>(
     sorted: &'a [T],
     key: impl Fn(&T) -> (u16, u64) + Copy + 'a,
     dims: [usize; 3],
     label: u16,
     c: [i64; 3],
+    radius: i64,
 ) -> impl Iterator<Item = usize> + 'a {
     let [nx, ny, nz] = dims.map(|d| d as i64);
-    (-RADIUS..=RADIUS)
-        .flat_map(move |dz| (-RADIUS..=RADIUS).map(move |dy| (c[1] + dy, c[2] + dz)))
+    (-radius..=radius)
+        .flat_map(move |dz| (-radius..=radius).map(move |dy| (c[1] + dy, c[2] + dz)))
         .filter(move |&(y, z)| y >= 0 && z >= 0 && y < ny && z < nz)
         .flat_map(move |(y, z)| {
             let base = (nx * (y + ny * z)) as u64;
-            let lo = base + (c[0] - RADIUS).max(0) as u64;
-            let hi = base + (c[0] + RADIUS).min(nx - 1) as u64;
+            let lo = base + (c[0] - radius).max(0) as u64;
+            let hi = base + (c[0] + radius).min(nx - 1) as u64;
             let start = sorted.partition_point(|p| key(p) < (label, lo));
             let end = sorted.partition_point(|p| key(p) <= (label, hi));
             start..end
@@ -115,12 +122,12 @@ pub(super) fn in_box<'a, T>(
 }
 
 /// The kernel's weight at offset `d` (voxels); 0 beyond its reach.
-fn tap(g: &[[f32; 5]; 3], d: [i64; 3]) -> f64 {
-    if d.iter().any(|x| x.abs() > RADIUS) {
+fn tap(g: &Spread, d: [i64; 3]) -> f64 {
+    if d.iter().any(|x| x.abs() > SPREAD) {
         return 0.0;
     }
     (0..3)
-        .map(|a| g[a][(d[a] + RADIUS) as usize] as f64)
+        .map(|a| g[a][(d[a] + SPREAD) as usize] as f64)
         .product()
 }
 
@@ -174,7 +181,7 @@ fn solve(mut a: Vec<f64>, mut b: Vec<f64>, k: usize) -> Option<Vec<f64>> {
 /// taps per axis; `n_labels` counts the background.
 pub fn relax(
     dims: [usize; 3],
-    kernels: &[[[f32; 5]; 3]],
+    kernels: &[Spread],
     mut pinned: Vec<Pinned>,
     n_labels: usize,
 ) -> Relaxation {
@@ -190,7 +197,7 @@ pub fn relax(
     let noise: Vec<Pinned> = pinned
         .iter()
         .filter(|p| {
-            in_box(&pinned, key, dims, p.label, coords(dims, p.voxel))
+            in_box(&pinned, key, dims, p.label, coords(dims, p.voxel), RADIUS)
                 .take(MAX_NEIGHBOURS + 2)
                 .count()
                 <= MAX_NEIGHBOURS + 1
@@ -203,7 +210,9 @@ pub fn relax(
     // Groups: noise voxels of one label within each other's kernel.
     let mut parent: Vec<usize> = (0..noise.len()).collect();
     for (i, p) in noise.iter().enumerate() {
-        for j in in_box(&noise, key, dims, p.label, coords(dims, p.voxel)).collect::<Vec<_>>() {
+        for j in
+            in_box(&noise, key, dims, p.label, coords(dims, p.voxel), SPREAD).collect::<Vec<_>>()
+        {
             let (a, b) = (root(&mut parent, i), root(&mut parent, j));
             if a != b {
                 parent[a.max(b)] = a.min(b);
@@ -247,8 +256,8 @@ pub fn relax(
         out.relaxed_per_label[label as usize] += k as u64;
         for (m, (c, o)) in members.iter().zip(at.iter().zip(offsets)) {
             out.offsets.push((label, noise[*m].voxel, o));
-            for dz in -RADIUS..=RADIUS {
-                for dy in -RADIUS..=RADIUS {
+            for dz in -SPREAD..=SPREAD {
+                for dy in -SPREAD..=SPREAD {
                     let (y, z) = (c[1] + dy, c[2] + dz);
                     if y >= 0 && z >= 0 && y < ny && z < nz {
                         out.rows[(y + ny * z) as usize] = true;

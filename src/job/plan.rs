@@ -431,8 +431,9 @@ impl serde::Serialize for LabelKey {
 /// 3: turned grids of tubes with only corner facets, ties in the axis estimate, the file's
 /// label names in reports, the NIfTI sform/qform warning and the label volume warning.
 /// 4: label voxels touching by an edge or a corner are one object (26-connectivity), objects
-/// and surface pieces in reports (issue 62).
-pub const OUTPUT_REVISION: u32 = 4;
+/// and surface pieces in reports (issue 62). 5: constrained label surfaces with the
+/// shrink-free kernel and the Gaussian narrowed where a label is thin (issue 62).
+pub const OUTPUT_REVISION: u32 = 5;
 
 /// Largest number of guard repair rounds.
 const MAX_GUARD_REPAIRS: usize = 20;

@@ -2,8 +2,8 @@
 
 use destair::extract::noise::*;
 
-fn flat_kernel() -> [[f32; 5]; 3] {
-    let t = [0.1f32, 0.2, 0.4, 0.2, 0.1];
+fn flat_kernel() -> [[f32; 9]; 3] {
+    let t = [0.02f32, 0.03, 0.1, 0.15, 0.4, 0.15, 0.1, 0.03, 0.02];
     [t, t, t]
 }
 
@@ -28,8 +28,11 @@ fn a_lone_pinned_voxel_is_relaxed_to_one_half() {
     assert!((r.delta(voxel, row, 1) - 0.2).abs() < 1e-6);
     assert!(r.is_relaxed(voxel, 1) && !r.is_relaxed(voxel, 0));
     assert_eq!(r.delta(voxel, row, 0), 0.0);
-    // A neighbour along x gains g(1,0,0) * offset = 0.2 * 0.4 * 0.4 / 0.064 * 0.2.
-    assert!((r.delta(voxel + 1, row, 1) - 0.1).abs() < 1e-6);
+    // A neighbour along x gains g(1,0,0) * offset = 0.15 * 0.4 * 0.4 / 0.064 * 0.2; four
+    // voxels away 0.02 * 0.4 * 0.4 / 0.064 * 0.2; five away nothing.
+    assert!((r.delta(voxel + 1, row, 1) - 0.075).abs() < 1e-6);
+    assert!((r.delta(voxel + 4, row, 1) - 0.01).abs() < 1e-6);
+    assert_eq!(r.delta(voxel + 5, row, 1), 0.0);
 }
 
 #[test]

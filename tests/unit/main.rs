@@ -1,8 +1,8 @@
 //! Tests of single modules through the library's public API.
 
 mod analysis_voxel_size;
+mod extract_constrained;
 mod extract_noise;
-mod extract_thin;
 mod guard;
 mod io_atomic;
 mod io_identity;
