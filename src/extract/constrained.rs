@@ -282,10 +282,15 @@ fn label_at(volume: &LabelVolume, p: [i64; 3]) -> u16 {
 }
 
 /// The smoothed (unclamped) weights of dense labels `a` and `b`, each with its own kernel, at
-/// voxel `v`, in one pass over the kernel's 9 x 9 x 9 voxels (voxels outside the volume are
-/// background): shrink-free (`2 g - g * g`) and the plain Gaussian's (`g`), which noise
-/// relaxation works on. Row by row: the row's sums for `g * g` (9 taps) and `g` (the middle 5).
-fn weights(volume: &LabelVolume, [ka, kb]: [&Kernel; 2], [a, b]: [u16; 2], v: [i64; 3]) -> Weights {
+/// voxel `v`, in one pass over the shrink-free kernel's 9 x 9 x 9 voxels (voxels outside the
+/// volume are background). Row by row: the row's sums for `g * g` (9 taps) and `g` (the
+/// middle 5).
+fn weights(
+    volume: &LabelVolume,
+    [ka, kb]: [&Kernel; 2],
+    [a, b]: [u16; 2],
+    v: [i64; 3],
+) -> [f32; 2] {
     let [nx, ny, nz] = volume.dims.map(|d| d as i64);
     let inside = (0..3).all(|k| v[k] >= REACH && v[k] + REACH < [nx, ny, nz][k]);
     let (mut w, mut plain) = ([0f32; 2], [0f32; 2]);
@@ -323,19 +328,7 @@ fn weights(volume: &LabelVolume, [ka, kb]: [&Kernel; 2], [a, b]: [u16; 2], v: [i
             w[1] -= kb.h[2][i] * kb.h[1][j] * hb;
         }
     }
-    Weights {
-        shrink_free: [w[0] + 2.0 * plain[0], w[1] + 2.0 * plain[1]],
-        gaussian: plain,
-    }
-}
-
-/// Two labels' smoothed weights at one voxel.
-#[derive(Debug, Clone, Copy)]
-struct Weights {
-    /// With the shrink-free kernel.
-    shrink_free: [f32; 2],
-    /// With the plain Gaussian (for noise relaxation).
-    gaussian: [f32; 2],
+    [w[0] + 2.0 * plain[0], w[1] + 2.0 * plain[1]]
 }
 
 /// How many voxels of `label` lie in a row along `axis` through voxel `v` (which holds it),
@@ -393,6 +386,14 @@ fn attached(volume: &LabelVolume, label: u16, v: [i64; 3]) -> bool {
     n >= MIN_ATTACHED
 }
 
+/// One edge's smoothed weights with the full kernels, [a at lo, b at lo, a at hi, b at hi],
+/// and per axis how far the Gaussian narrows there (`None`: not at all).
+#[derive(Debug, Clone, Copy)]
+struct Sample {
+    weights: [f32; 4],
+    narrowing: Option<[f64; 3]>,
+}
+
 /// The cell edge an edge vertex lies on: its axis and lower voxel (the position is a whole
 /// number along the other two axes).
 fn edge_of(p: &[f64; 3]) -> Option<(usize, [i64; 3])> {
@@ -440,28 +441,6 @@ pub fn place_on_weights(
         (a != b && smoothed(a) && smoothed(b)).then_some((axis, lo, hi, a, b))
     };
 
-    // Pass 1: the smoothed weights at both ends of every edge between two smoothed labels.
-    // Both kinds of weights, as [a at lo, b at lo, a at hi, b at hi].
-    let kinds = &all.kinds;
-    let samples: Vec<Option<[[f32; 4]; 2]>> = all
-        .positions
-        .par_iter()
-        .zip(kinds.par_iter())
-        .map(|(p, &kind)| {
-            let (_, lo, hi, a, b) = (kind == VERTEX_EDGE).then(|| edge(p)).flatten()?;
-            let g = [&kernels[a as usize], &kernels[b as usize]];
-            let (l, h) = (
-                weights(volume, g, [a, b], lo),
-                weights(volume, g, [a, b], hi),
-            );
-            let four = |l: [f32; 2], h: [f32; 2]| [l[0], l[1], h[0], h[1]];
-            Some([
-                four(l.shrink_free, h.shrink_free),
-                four(l.gaussian, h.gaussian),
-            ])
-        })
-        .collect();
-
     // Thin parts (§6.3.4): where a label's run of voxels through an edge's end is short along
     // an axis, the Gaussian along that axis narrows to a fraction of the run, for both labels
     // of the edge, so a thin part keeps its size instead of shrinking onto its voxel centres.
@@ -490,6 +469,26 @@ pub fn place_on_weights(
         factor.iter().any(|&f| f < 1.0).then_some(factor)
     };
 
+    // Pass 1: the smoothed weights at both ends of every edge between two smoothed labels, as
+    // [a at lo, b at lo, a at hi, b at hi], and how far the Gaussian narrows there.
+    let kinds = &all.kinds;
+    let samples: Vec<Option<Sample>> = all
+        .positions
+        .par_iter()
+        .zip(kinds.par_iter())
+        .map(|(p, &kind)| {
+            let e = (kind == VERTEX_EDGE).then(|| edge(p)).flatten()?;
+            let (_, lo, hi, a, b) = e;
+            let g = [&kernels[a as usize], &kernels[b as usize]];
+            let [a_lo, b_lo] = weights(volume, g, [a, b], lo);
+            let [a_hi, b_hi] = weights(volume, g, [a, b], hi);
+            Some(Sample {
+                weights: [a_lo, b_lo, a_hi, b_hi],
+                narrowing: scale(e),
+            })
+        })
+        .collect();
+
     // Surface noise (§6.3.3): the voxels the clamp pins, where both labels relax noise. A
     // pinned voxel is a bump or a pit only where its own label sits on more of itself (or is
     // the background): a structure of one or two voxels is not noise.
@@ -499,23 +498,24 @@ pub fn place_on_weights(
         .zip(samples.par_iter())
         .flat_map_iter(|(p, w)| {
             let mut pins = Vec::new();
-            let Some(([w, gaussian], e)) = w.zip(edge(p)) else {
+            let Some((sample, (_, lo, hi, a, b))) = w.as_ref().zip(edge(p)) else {
                 return pins;
             };
-            let (_, lo, hi, a, b) = e;
-            let thin = scale(e).is_some_and(|f| f.iter().any(|&x| x <= NOISE_THICKNESS));
+            let thin = sample
+                .narrowing
+                .is_some_and(|f| f.iter().any(|&x| x <= NOISE_THICKNESS));
             if !(relaxes(a) && relaxes(b)) || thin {
                 return pins;
             }
             // lo holds a and hi holds b: a's weight must win at lo, b's at hi.
-            let _ = gaussian;
-            for (voxel, label, (w, raw), own) in [
-                (lo, a, (w[0], w[0]), true),
-                (lo, b, (w[1], w[1]), false),
-                (hi, b, (w[3], w[3]), true),
-                (hi, a, (w[2], w[2]), false),
+            let w = sample.weights;
+            for (voxel, label, raw, own) in [
+                (lo, a, w[0], true),
+                (lo, b, w[1], false),
+                (hi, b, w[3], true),
+                (hi, a, w[2], false),
             ] {
-                let wrong_side = (own && w < 0.5) || (!own && w > 0.5);
+                let wrong_side = (own && raw < 0.5) || (!own && raw > 0.5);
                 // The voxel's own label sticks out here (or it is a pit of the background).
                 let holds = if own { label } else { label_at(volume, voxel) };
                 let bump = holds == 0 || attached(volume, holds, voxel);
@@ -530,10 +530,10 @@ pub fn place_on_weights(
             pins
         })
         .collect();
-    // Offsets spread with the label's Gaussian (a gentle swelling) on top of the shrink-free
-    // weights.
-    let gaussians: Vec<[[f32; 9]; 3]> = kernels.iter().map(|k| k.h).collect();
-    let relaxation = super::noise::relax(volume.dims, &gaussians, pinned, n_labels);
+    // Offsets spread with the Gaussian convolved with itself (a wider, gentle swelling than
+    // the shrink-free kernel would make: a pimple's steepest facet 35 degrees with it, 11 so).
+    let spreads: Vec<[[f32; 9]; 3]> = kernels.iter().map(|k| k.h).collect();
+    let relaxation = super::noise::relax(volume.dims, &spreads, pinned, n_labels);
 
     // Pass 2: narrowed kernels where thin, offsets and the clamp; then the tie along the edge.
     let margin = MARGIN;
@@ -542,8 +542,7 @@ pub fn place_on_weights(
         .par_iter()
         .zip(samples.par_iter())
         .map(|(p, sample)| {
-            let ([shrink_free, gaussian], e) = sample.zip(edge(p))?;
-            let (axis, lo, hi, a, b) = e;
+            let (sample, (axis, lo, hi, a, b)) = sample.as_ref().zip(edge(p))?;
             // Within reach of relaxed noise: the Gaussian's weights and the offsets.
             let offsets = (!relaxation.is_empty())
                 .then(|| {
@@ -559,23 +558,26 @@ pub fn place_on_weights(
                     d
                 })
                 .filter(|d| d.iter().any(|&x| x != 0.0));
-            let factor = if offsets.is_some() { None } else { scale(e) };
-            let _ = gaussian;
+            // Relaxed noise keeps the full kernel: it is meant to be smoothed away.
+            let factor = if offsets.is_some() {
+                None
+            } else {
+                sample.narrowing
+            };
             let w = if let Some(d) = offsets {
-                std::array::from_fn(|i| shrink_free[i] + d[i])
+                std::array::from_fn(|i| sample.weights[i] + d[i])
             } else if let Some(f) = factor {
-                let s = volume.grid.spacing();
                 let k = |l: u16| {
-                    Kernel::new(std::array::from_fn(|ax| sigmas[l as usize] * f[ax] / s[ax]))
+                    Kernel::new(std::array::from_fn(|ax| {
+                        sigmas[l as usize] * f[ax] / spacing[ax]
+                    }))
                 };
                 let (ka, kb) = (k(a), k(b));
-                let (l, h) = (
-                    weights(volume, [&ka, &kb], [a, b], lo).shrink_free,
-                    weights(volume, [&ka, &kb], [a, b], hi).shrink_free,
-                );
-                [l[0], l[1], h[0], h[1]]
+                let [a_lo, b_lo] = weights(volume, [&ka, &kb], [a, b], lo);
+                let [a_hi, b_hi] = weights(volume, [&ka, &kb], [a, b], hi);
+                [a_lo, b_lo, a_hi, b_hi]
             } else {
-                shrink_free
+                sample.weights
             };
             // d = w_a - w_b: positive at lo and negative at hi after the clamp.
             let d_lo = w[0].max(0.5 + margin) - w[1].min(0.5 - margin);

@@ -47,6 +47,8 @@ pub struct Relaxation {
     offsets: Vec<(u16, u64, f64)>,
     /// Rows (y + ny * z) within reach of any offset: a quick no for the rest.
     rows: Vec<bool>,
+    /// Rows that hold an offset: the only ones a sum visits.
+    occupied: Vec<bool>,
     /// Noise voxels relaxed, per dense label.
     pub relaxed_per_label: Vec<u64>,
     /// Noise voxels left pinned (their group too large or singular), per dense label.
@@ -66,14 +68,29 @@ impl Relaxation {
             return 0.0;
         }
         let c = coords(self.dims, voxel);
+        let [nx, ny, nz] = self.dims.map(|d| d as i64);
+        // The label's offsets; in them, those of each occupied row within reach.
+        let start = self.offsets.partition_point(|e| e.0 < label);
+        let end = self.offsets.partition_point(|e| e.0 <= label);
+        let own = &self.offsets[start..end];
         let mut sum = 0.0;
-        for i in in_box(&self.offsets, |e| (e.0, e.1), self.dims, label, c, SPREAD) {
-            let (_, n, offset) = self.offsets[i];
-            let n = coords(self.dims, n);
-            sum += tap(
-                &self.kernels[label as usize],
-                std::array::from_fn(|k| c[k] - n[k]),
-            ) * offset;
+        let rows = (-SPREAD..=SPREAD)
+            .flat_map(|dz| (-SPREAD..=SPREAD).map(move |dy| (c[1] + dy, c[2] + dz)))
+            .filter(|&(y, z)| y >= 0 && z >= 0 && y < ny && z < nz)
+            .filter(|&(y, z)| self.occupied[(y + ny * z) as usize]);
+        for (y, z) in rows {
+            let base = (nx * (y + ny * z)) as u64;
+            let lo = base + (c[0] - SPREAD).max(0) as u64;
+            let hi = base + (c[0] + SPREAD).min(nx - 1) as u64;
+            let first = own.partition_point(|e| e.1 < lo);
+            let last = own.partition_point(|e| e.1 <= hi);
+            for &(_, n, offset) in &own[first..last] {
+                let n = coords(self.dims, n);
+                sum += tap(
+                    &self.kernels[label as usize],
+                    std::array::from_fn(|k| c[k] - n[k]),
+                ) * offset;
+            }
         }
         sum as f32
     }
@@ -226,6 +243,7 @@ pub fn relax(
     }
     let tap = |label: u16, d: [i64; 3]| tap(&kernels[label as usize], d);
     out.rows = vec![false; dims[1] * dims[2]];
+    out.occupied = vec![false; dims[1] * dims[2]];
     out.dims = dims;
     out.kernels = kernels.to_vec();
     let [_, ny, nz] = dims.map(|d| d as i64);
@@ -256,6 +274,7 @@ pub fn relax(
         out.relaxed_per_label[label as usize] += k as u64;
         for (m, (c, o)) in members.iter().zip(at.iter().zip(offsets)) {
             out.offsets.push((label, noise[*m].voxel, o));
+            out.occupied[(c[1] + ny * c[2]) as usize] = true;
             for dz in -SPREAD..=SPREAD {
                 for dy in -SPREAD..=SPREAD {
                     let (y, z) = (c[1] + dy, c[2] + dz);

@@ -118,3 +118,73 @@ fn every_object_is_one_closed_surface_around_its_voxels() {
     failures.truncate(20);
     assert!(n == 0, "{n} failures:\n{}", failures.join("\n"));
 }
+
+/// Issue 62, item 2, as far as it holds today (measured 2026-12-07, figures in CHANGELOG): the
+/// constrained surface keeps what the binary one keeps. Single voxels and two-voxel labels
+/// exactly; tubes of radius 1 mm and more, in every orientation, at least 0.83 of the binary
+/// volume (measured 0.84-1.00; the plain Gaussian kept 0.18 of it for in-slice tubes); labels
+/// of 1000+ voxels whose binary surface holds their voxel volume within 1 % stay within 3 % of
+/// it (sphere 1.8 %); one-voxel sheets and the septum 0.5-1.3 of their voxel volume.
+#[test]
+fn constrained_surfaces_keep_the_size_the_binary_surface_keeps() {
+    use destair::mesh::geometry::signed_volume;
+    let truth: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(data().join("truth.json")).unwrap()).unwrap();
+    let mut failures = Vec::new();
+    let mut checked = [0usize; 4];
+    for (name, info) in truth.as_object().unwrap() {
+        let map = read_label_map(&data().join(format!("{name}.nii.gz")), Space::Lps).unwrap();
+        let volume = &map.layers[0];
+        let volumes = |surface: Surface| {
+            let smoothing = vec![
+                LabelSmoothing {
+                    surface,
+                    ..LabelSmoothing::default()
+                };
+                volume.labels.len() + 1
+            ];
+            let mut all = interfaces(volume, &[]);
+            place_on_weights(volume, &mut all, &smoothing);
+            label_surfaces(volume, &all)
+                .iter()
+                .map(|s| (s.label, signed_volume(&s.mesh)))
+                .collect::<Vec<_>>()
+        };
+        let (binary, constrained) = (volumes(Surface::Binary), volumes(Surface::Constrained));
+        for (&(label, b), &(_, c)) in binary.iter().zip(&constrained) {
+            let l = &volume.labels[label as usize - 1];
+            let voxels = l.n_voxels as f64 * volume.grid.voxel_volume();
+            let want = &info["labels"][l.value.to_string()];
+            let shape = want["shape"].as_str().unwrap_or("");
+            let what = format!(
+                "{name} label {}: constrained {c:.2}, binary {b:.2}, voxels {voxels:.2} mm³",
+                l.value
+            );
+            eprintln!("{what}");
+            let mut expect = |i: usize, ok: bool| {
+                checked[i] += 1;
+                if !ok {
+                    failures.push(what.clone());
+                }
+            };
+            if l.n_voxels <= 2 {
+                expect(0, c >= 0.99 * b);
+            }
+            if shape == "tube" && want["radius_mm"].as_f64().unwrap() >= 1.0 {
+                expect(1, c >= 0.83 * b);
+            }
+            if l.n_voxels >= 1000 && (b / voxels - 1.0).abs() <= 0.01 {
+                expect(2, (c / voxels - 1.0).abs() <= 0.03);
+            }
+            if name == "sheets" || (name == "septum" && l.value == 3) {
+                expect(3, (0.5..=1.3).contains(&(c / voxels)));
+            }
+        }
+    }
+    // Small labels, tubes, large labels, sheets and the septum were all seen.
+    assert!(
+        checked[0] >= 3 && checked[1] >= 25 && checked[2] >= 3 && checked[3] >= 3,
+        "{checked:?}"
+    );
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
