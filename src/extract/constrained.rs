@@ -282,53 +282,83 @@ fn label_at(volume: &LabelVolume, p: [i64; 3]) -> u16 {
 }
 
 /// The smoothed (unclamped) weights of dense labels `a` and `b`, each with its own kernel, at
-/// voxel `v`, in one pass over the shrink-free kernel's 9 x 9 x 9 voxels (voxels outside the
-/// volume are background). Row by row: the row's sums for `g * g` (9 taps) and `g` (the
-/// middle 5).
-fn weights(
+/// both ends of the cell edge from voxel `lo` one step along `axis`, as [a at lo, b at lo, a at
+/// hi, b at hi] (voxels outside the volume are background). One pass over the union of the
+/// two ends' 9 x 9 x 9 boxes, row by row along x: a row's sums for `g * g` (9 taps) and `g`
+/// (the middle 5) serve both ends where the boxes share it (edges along y and z share 72 of 81
+/// rows), so the pair costs little more than one end.
+pub fn edge_weights(
     volume: &LabelVolume,
     [ka, kb]: [&Kernel; 2],
     [a, b]: [u16; 2],
-    v: [i64; 3],
-) -> [f32; 2] {
+    lo: [i64; 3],
+    axis: usize,
+) -> [f32; 4] {
     let [nx, ny, nz] = volume.dims.map(|d| d as i64);
-    let inside = (0..3).all(|k| v[k] >= REACH && v[k] + REACH < [nx, ny, nz][k]);
-    let (mut w, mut plain) = ([0f32; 2], [0f32; 2]);
-    let mut row = [0u16; 9];
-    for dz in -REACH..=REACH {
-        let i = (dz + REACH) as usize;
-        for dy in -REACH..=REACH {
-            let j = (dy + REACH) as usize;
-            let (y, z) = (v[1] + dy, v[2] + dz);
+    let step: [i64; 3] = std::array::from_fn(|k| i64::from(k == axis));
+    let inside = (0..3).all(|k| lo[k] >= REACH && lo[k] + step[k] + REACH < [nx, ny, nz][k]);
+    let width = (2 * REACH + 1 + step[0]) as usize;
+    // Per end: the -g*g part and the Gaussian part, per label.
+    let mut w = [[0f32; 2]; 2];
+    let mut plain = [[0f32; 2]; 2];
+    let mut row = [0u16; 10];
+    // The sums of a row's 9 voxels from `shift`: g*g for a and b, then g for a and b.
+    let sums = |row: &[u16; 10], shift: usize, middle: bool| {
+        let mut s = [0f32; 4];
+        for (k, &l) in row[shift..shift + 9].iter().enumerate() {
+            let (is_a, is_b) = (f32::from(l == a), f32::from(l == b));
+            s[0] += is_a * ka.h[0][k];
+            s[1] += is_b * kb.h[0][k];
+        }
+        if middle {
+            for (k, &l) in row[shift + 2..shift + 7].iter().enumerate() {
+                s[2] += f32::from(l == a) * ka.g[0][k];
+                s[3] += f32::from(l == b) * kb.g[0][k];
+            }
+        }
+        s
+    };
+    for dz in -REACH..=REACH + step[2] {
+        for dy in -REACH..=REACH + step[1] {
+            let (y, z) = (lo[1] + dy, lo[2] + dz);
             if inside {
                 // The whole row lies in the volume: no bounds to check.
-                let start = (v[0] - REACH + nx * (y + ny * z)) as usize;
-                row.copy_from_slice(&volume.voxels[start..start + 9]);
+                let start = (lo[0] - REACH + nx * (y + ny * z)) as usize;
+                row[..width].copy_from_slice(&volume.voxels[start..start + width]);
             } else {
-                for (dx, l) in (-REACH..=REACH).zip(row.iter_mut()) {
-                    *l = label_at(volume, [v[0] + dx, y, z]);
+                for (dx, l) in (-REACH..).zip(row[..width].iter_mut()) {
+                    *l = label_at(volume, [lo[0] + dx, y, z]);
                 }
             }
-            let (mut ha, mut hb, mut ga, mut gb) = (0f32, 0f32, 0f32, 0f32);
-            for (k, &l) in row.iter().enumerate() {
-                let (is_a, is_b) = (f32::from(l == a), f32::from(l == b));
-                ha += is_a * ka.h[0][k];
-                hb += is_b * kb.h[0][k];
-            }
-            let middle = (2..7).contains(&i) && (2..7).contains(&j);
-            if middle {
-                for (k, &l) in row[2..7].iter().enumerate() {
-                    ga += f32::from(l == a) * ka.g[0][k];
-                    gb += f32::from(l == b) * kb.g[0][k];
+            // Where this row sits in each end's box (hi's box starts one step further).
+            let at = [
+                (dz + REACH, dy + REACH),
+                (dz + REACH - step[2], dy + REACH - step[1]),
+            ];
+            let within = |(i, j): (i64, i64)| (0..9).contains(&i) && (0..9).contains(&j);
+            let middle = |(i, j): (i64, i64)| (2..7).contains(&i) && (2..7).contains(&j);
+            let shared = sums(&row, 0, at.iter().any(|&p| within(p) && middle(p)));
+            for (end, &(i, j)) in at.iter().enumerate() {
+                if !within((i, j)) {
+                    continue;
                 }
-                plain[0] += ka.g[2][i - 2] * ka.g[1][j - 2] * ga;
-                plain[1] += kb.g[2][i - 2] * kb.g[1][j - 2] * gb;
+                let s = if end == 1 && step[0] == 1 {
+                    sums(&row, 1, middle((i, j)))
+                } else {
+                    shared
+                };
+                let (i, j) = (i as usize, j as usize);
+                if middle((i as i64, j as i64)) {
+                    plain[end][0] += ka.g[2][i - 2] * ka.g[1][j - 2] * s[2];
+                    plain[end][1] += kb.g[2][i - 2] * kb.g[1][j - 2] * s[3];
+                }
+                w[end][0] -= ka.h[2][i] * ka.h[1][j] * s[0];
+                w[end][1] -= kb.h[2][i] * kb.h[1][j] * s[1];
             }
-            w[0] -= ka.h[2][i] * ka.h[1][j] * ha;
-            w[1] -= kb.h[2][i] * kb.h[1][j] * hb;
         }
     }
-    [w[0] + 2.0 * plain[0], w[1] + 2.0 * plain[1]]
+    let end = |e: usize, l: usize| w[e][l] + 2.0 * plain[e][l];
+    [end(0, 0), end(0, 1), end(1, 0), end(1, 1)]
 }
 
 /// How many voxels of `label` lie in a row along `axis` through voxel `v` (which holds it),
@@ -478,12 +508,10 @@ pub fn place_on_weights(
         .zip(kinds.par_iter())
         .map(|(p, &kind)| {
             let e = (kind == VERTEX_EDGE).then(|| edge(p)).flatten()?;
-            let (_, lo, hi, a, b) = e;
+            let (axis, lo, _, a, b) = e;
             let g = [&kernels[a as usize], &kernels[b as usize]];
-            let [a_lo, b_lo] = weights(volume, g, [a, b], lo);
-            let [a_hi, b_hi] = weights(volume, g, [a, b], hi);
             Some(Sample {
-                weights: [a_lo, b_lo, a_hi, b_hi],
+                weights: edge_weights(volume, g, [a, b], lo, axis),
                 narrowing: scale(e),
             })
         })
@@ -573,9 +601,7 @@ pub fn place_on_weights(
                     }))
                 };
                 let (ka, kb) = (k(a), k(b));
-                let [a_lo, b_lo] = weights(volume, [&ka, &kb], [a, b], lo);
-                let [a_hi, b_hi] = weights(volume, [&ka, &kb], [a, b], hi);
-                [a_lo, b_lo, a_hi, b_hi]
+                edge_weights(volume, [&ka, &kb], [a, b], lo, axis)
             } else {
                 sample.weights
             };
