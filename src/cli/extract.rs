@@ -28,7 +28,7 @@ pub struct Args {
     /// cell-edge midpoints (terraced).
     #[arg(long, value_enum, default_value_t = SurfaceArg::Constrained)]
     surface: SurfaceArg,
-    /// Gaussian sigma for --surface constrained (mm; default twice the smallest spacing).
+    /// Gaussian sigma for --surface constrained (mm; default 1.5 times the smallest spacing, at most twice it).
     #[arg(long)]
     sigma_mm: Option<f64>,
     /// One- and two-voxel bumps and pits: smooth relaxes their constraint into gentle
@@ -250,13 +250,20 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
             layer,
             &destair::extract::constrained::connectivity_of(&per_label),
         );
+        // The binary surfaces too, to report what the smoothing changed.
+        let binary = (smoothing.surface == Surface::Constrained).then(|| {
+            destair::extract::label_surfaces(layer, &all)
+                .into_iter()
+                .map(|s| (s.label, s.mesh))
+                .collect::<Vec<_>>()
+        });
         let counts = destair::extract::constrained::place_on_weights(layer, &mut all, &per_label);
-        (all, counts)
+        (all, counts, binary)
     };
     // Interfaces kept for --combined, which writes the same surfaces as one mesh.
     let mut kept = Vec::new();
     for (layer_index, layer) in map.layers.iter().enumerate() {
-        let (all, counts) = surfaces_of(layer);
+        let (all, counts, binary) = surfaces_of(layer);
         let joins = destair::extract::joins_of(layer, &vec![connectivity; layer.labels.len() + 1]);
         let objects = destair::volume::components::label_components(layer, &joins);
         let surfaces = destair::extract::label_surfaces(layer, &all);
@@ -266,7 +273,13 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
         // File names first (in label order, so clashes resolve the same way every time), then
         // the labels written and measured in parallel.
         let mut jobs = Vec::with_capacity(surfaces.len());
+        let mut binary = binary.map(|b| b.into_iter());
         for s in surfaces {
+            // Both lists are in label order.
+            let binary = binary
+                .as_mut()
+                .and_then(|b| b.find(|(l, _)| *l == s.label))
+                .map(|(_, mesh)| mesh);
             let label = &layer.labels[s.label as usize - 1];
             let mut stem = destair::volume::label_file_stem(&label.name, label.value);
             if !used.insert(stem.clone()) {
@@ -289,12 +302,12 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
             if let Some(w) = extraction.pieces_warning() {
                 warnings.push(format!("label {} ({}): {w}", label.value, label.name));
             }
-            jobs.push((label, file, s.mesh, extraction));
+            jobs.push((label, file, s.mesh, extraction, binary));
         }
         use rayon::prelude::*;
         let written: Vec<anyhow::Result<_>> = jobs
             .into_par_iter()
-            .map(|(label, file, mesh, extraction)| {
+            .map(|(label, file, mesh, extraction, binary)| {
                 let path = args.out.join(&file);
                 match args.format {
                     FormatArg::Ply => destair::io::ply::write_ply(&path, &mesh, &meta, &[])?,
@@ -307,6 +320,7 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
                     &mesh,
                     &layer.grid,
                     extraction,
+                    binary.as_ref(),
                 ))
             })
             .collect();

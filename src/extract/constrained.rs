@@ -50,6 +50,11 @@ const NOISE_THICKNESS: f64 = 2.0 * THICKNESS_FRACTION;
 /// keeps its size.
 const MIN_ATTACHED: usize = 4;
 
+/// Most face neighbours of its own label a pinned voxel may have to be noise: a one-voxel
+/// bump on a face has 1, each voxel of a two-voxel bump 2; a voxel on a staircase's edge or a
+/// box's corner has 3 or more and is shape, not noise.
+const MOST_FACES_OF_A_BUMP: usize = 2;
+
 /// How far from 1/2 the clamp keeps weights: surfaces stay a little off voxel centres (at 0,
 /// one-voxel-thin parts would collapse onto them).
 pub const MARGIN: f32 = 0.02;
@@ -158,15 +163,21 @@ pub fn connectivity_of(smoothing: &[LabelSmoothing]) -> Vec<super::Connectivity>
     smoothing.iter().map(|s| s.connectivity).collect()
 }
 
-/// The chapter's sigma: twice the smallest voxel spacing (mm).
+/// Default sigma, in smallest voxel spacings. The chapter's 2 cuts the 5-tap Gaussian at one
+/// sigma along the finest axis; 1.5 is closer to real anatomy and smoother there (MNI ICBM152
+/// white / grey matter at 1 x 1 x 3 mm against the 1 mm surface: 0.236 / 0.220 mm at 26.1 /
+/// 20.9 degrees, against 0.245 / 0.227 mm at 27.1 / 21.3 with 2).
+pub const DEFAULT_SIGMA_SPACINGS: f64 = 1.5;
+
+/// The default sigma on `volume`: [`DEFAULT_SIGMA_SPACINGS`] of its smallest spacing (mm).
 pub fn default_sigma_mm(volume: &LabelVolume) -> f64 {
     let s = volume.grid.spacing();
-    2.0 * s[0].min(s[1]).min(s[2])
+    DEFAULT_SIGMA_SPACINGS * s[0].min(s[1]).min(s[2])
 }
 
-/// Largest sigma accepted, in smallest voxel spacings: the default. The kernel's 5 taps reach
-/// 2 voxels along each axis; beyond 2 voxels along the finest one the Gaussian is cut short
-/// into a box, and surfaces get rougher, not smoother (0.8 x 0.8 x 2.5 mm: a 12 mm sphere
+/// Largest sigma accepted, in smallest voxel spacings. The kernel's 5 taps reach 2 voxels
+/// along each axis; beyond 2 voxels along the finest one the Gaussian is cut short into a box,
+/// and surfaces get rougher, not smoother (0.8 x 0.8 x 2.5 mm, plain Gaussian: a 12 mm sphere
 /// 6.0 degrees at 1.6 mm, 9.7 at 3.2, 12.9 at 10; a 3 mm tube 16.1, 21.1, 21.3).
 pub const MAX_SIGMA_SPACINGS: f64 = 2.0;
 
@@ -178,11 +189,12 @@ pub fn check_sigma(sigma_mm: f64, volume: &LabelVolume) -> Result<(), String> {
     let most = MAX_SIGMA_SPACINGS * finest;
     if sigma_mm > most * (1.0 + 1e-9) {
         return Err(format!(
-            "sigma_mm = {} is more than {} mm, twice this map's smallest voxel spacing ({} mm): the 5 x 5 x 5 kernel would cut the Gaussian short and make the surface rougher, not smoother; use a sigma up to {} mm (the default), less for less smoothing",
+            "sigma_mm = {} is more than {} mm, twice this map's smallest voxel spacing ({} mm): the 5 x 5 x 5 kernel would cut the Gaussian short and make the surface rougher, not smoother; use a sigma up to {} mm (the default is {} mm), less for less smoothing",
             crate::units::readable(sigma_mm),
             crate::units::readable(most),
             crate::units::readable(finest),
-            crate::units::readable(most)
+            crate::units::readable(most),
+            crate::units::readable(default_sigma_mm(volume))
         ));
     }
     Ok(())
@@ -403,17 +415,21 @@ fn thickness(
     longest
 }
 
-/// Whether voxel `v` (which holds `label`) has at least [`MIN_ATTACHED`] voxels of its label
-/// among its 26 neighbours.
-fn attached(volume: &LabelVolume, label: u16, v: [i64; 3]) -> bool {
-    let mut n = 0;
+/// Whether voxel `v` (which holds `label`) sticks out of its label's surface as a bump or a
+/// pit of one or two voxels: at most [`MOST_FACES_OF_A_BUMP`] of its 6 face neighbours hold its
+/// label, and (unless it is the background) at least [`MIN_ATTACHED`] of its 26 neighbours do.
+fn bump_or_pit(volume: &LabelVolume, label: u16, v: [i64; 3]) -> bool {
+    let (mut faces, mut all) = (0, 0);
     for o in 0..27i64 {
         let d = [o % 3 - 1, o / 3 % 3 - 1, o / 9 - 1];
         if d != [0, 0, 0] && label_at(volume, std::array::from_fn(|k| v[k] + d[k])) == label {
-            n += 1;
+            all += 1;
+            if d.iter().filter(|&&x| x != 0).count() == 1 {
+                faces += 1;
+            }
         }
     }
-    n >= MIN_ATTACHED
+    faces <= MOST_FACES_OF_A_BUMP && (label == 0 || all >= MIN_ATTACHED)
 }
 
 /// One edge's smoothed weights with the full kernels, [a at lo, b at lo, a at hi, b at hi],
@@ -546,7 +562,7 @@ pub fn place_on_weights(
                 let wrong_side = (own && raw < 0.5) || (!own && raw > 0.5);
                 // The voxel's own label sticks out here (or it is a pit of the background).
                 let holds = if own { label } else { label_at(volume, voxel) };
-                let bump = holds == 0 || attached(volume, holds, voxel);
+                let bump = bump_or_pit(volume, holds, voxel);
                 if let (true, true, Some(index)) = (wrong_side, bump, linear(voxel)) {
                     pins.push(Pinned {
                         voxel: index,
@@ -586,15 +602,17 @@ pub fn place_on_weights(
                     d
                 })
                 .filter(|d| d.iter().any(|&x| x != 0.0));
-            // Relaxed noise keeps the full kernel: it is meant to be smoothed away.
-            let factor = if offsets.is_some() {
-                None
-            } else {
-                sample.narrowing
-            };
-            let w = if let Some(d) = offsets {
-                std::array::from_fn(|i| sample.weights[i] + d[i])
-            } else if let Some(f) = factor {
+            // The edges of a relaxed voxel keep the full kernel (it is meant to be smoothed
+            // away); every other edge keeps its narrowing and gets the offsets on top. The
+            // full kernel everywhere the offsets reach (9 x 9 x 9 voxels) undid the narrowing
+            // of real thin parts: MNI white matter lay 0.253 mm from its 1 mm surface, 0.244
+            // with no noise relaxed, 0.245 so.
+            let near_noise = offsets.is_some()
+                && [(lo, a), (lo, b), (hi, a), (hi, b)]
+                    .iter()
+                    .any(|&(v, l)| linear(v).is_some_and(|v| relaxation.is_relaxed(v, l)));
+            let factor = if near_noise { None } else { sample.narrowing };
+            let base = if let Some(f) = factor {
                 let k = |l: u16| {
                     Kernel::new(std::array::from_fn(|ax| {
                         sigmas[l as usize] * f[ax] / spacing[ax]
@@ -604,6 +622,11 @@ pub fn place_on_weights(
                 edge_weights(volume, [&ka, &kb], [a, b], lo, axis)
             } else {
                 sample.weights
+            };
+            let w = if let Some(d) = offsets {
+                std::array::from_fn(|i| base[i] + d[i])
+            } else {
+                base
             };
             // d = w_a - w_b: positive at lo and negative at hi after the clamp.
             let d_lo = w[0].max(0.5 + margin) - w[1].min(0.5 - margin);

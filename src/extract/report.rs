@@ -23,6 +23,36 @@ pub struct ExtractedLabel {
     pub n_triangles: usize,
     pub closed_oriented_manifold: bool,
     pub extraction: Extraction,
+    /// For constrained surfaces: what the smoothing changed against the binary extraction of
+    /// the same label.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub against_binary: Option<AgainstBinary>,
+}
+
+/// A constrained surface against the binary extraction of the same label: volume (mm³, and
+/// the change in %) and mean normal curvature (degrees, as paper 001 measures it).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct AgainstBinary {
+    pub binary_mesh_volume_mm3: f64,
+    /// 100 (constrained / binary - 1): negative where the surface lost volume.
+    pub volume_change_percent: f64,
+    pub binary_curvature_deg: f64,
+    pub curvature_deg: f64,
+}
+
+impl AgainstBinary {
+    /// Measures `mesh` (constrained) against `binary`, the same label's binary surface.
+    pub fn measure(mesh: &crate::Mesh, binary: &crate::Mesh) -> AgainstBinary {
+        use crate::metrics::normal_curvature::average_normal_curvature;
+        let curvature = |m: &crate::Mesh| average_normal_curvature(m, &Topology::build(m));
+        let (b, c) = (signed_volume(binary), signed_volume(mesh));
+        AgainstBinary {
+            binary_mesh_volume_mm3: b,
+            volume_change_percent: if b != 0.0 { 100.0 * (c / b - 1.0) } else { 0.0 },
+            binary_curvature_deg: curvature(binary),
+            curvature_deg: curvature(mesh),
+        }
+    }
 }
 
 /// How a label's surface was made, with what the refinements did.
@@ -98,7 +128,8 @@ pub struct ExtractReport {
     pub warnings: Vec<String>,
 }
 
-/// The row of one extracted label.
+/// The row of one extracted label; `binary` is the label's binary surface when `mesh` is a
+/// constrained one.
 pub fn extracted_label(
     layer: usize,
     label: &Label,
@@ -106,6 +137,7 @@ pub fn extracted_label(
     mesh: &crate::Mesh,
     grid: &Grid,
     extraction: Extraction,
+    binary: Option<&crate::Mesh>,
 ) -> ExtractedLabel {
     ExtractedLabel {
         layer,
@@ -119,6 +151,7 @@ pub fn extracted_label(
         n_triangles: mesh.n_triangles(),
         closed_oriented_manifold: is_closed_oriented_manifold(mesh),
         extraction,
+        against_binary: binary.map(|b| AgainstBinary::measure(mesh, b)),
     }
 }
 

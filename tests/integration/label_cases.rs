@@ -168,6 +168,12 @@ fn labels_become_structures_smoothed_with_the_header_geometry() {
         "--surface",
         "binary",
     ]);
+    // A binary extraction has nothing to compare with itself.
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(ex.join("extract.json")).unwrap()).unwrap();
+    for l in report["labels"].as_array().unwrap() {
+        assert!(l.get("against_binary").is_none(), "{l}");
+    }
     let opts = ReadOptions::default();
     let extracted = read_mesh(&ex.join("label_3.ply"), &opts).unwrap();
     let copied = read_mesh(&tmp.path().join("out/oblique/label_3.ply"), &opts).unwrap();
@@ -765,15 +771,28 @@ fn extract_constrained_surfaces_from_the_command_line() {
             (&e["noise"], &e["thin"]),
             (&"smooth".into(), &"protect".into())
         );
-        // sigma: twice the smallest spacing (0.45 mm).
+        // sigma: 1.5 times the smallest spacing (0.45 mm).
         let sigma = e["sigma_mm"].as_f64().unwrap();
-        assert!((sigma - 0.9).abs() < 1e-5, "{sigma}");
+        assert!((sigma - 0.675).abs() < 1e-5, "{sigma}");
         assert_eq!(l["closed_oriented_manifold"], true, "{l}");
         let (m, v) = (
             l["mesh_volume_mm3"].as_f64().unwrap(),
             l["voxel_volume_mm3"].as_f64().unwrap(),
         );
         assert!((m / v - 1.0).abs() < 0.1, "{l}");
+        // What the smoothing changed against the binary surface of the same label.
+        let a = &l["against_binary"];
+        let (b, change) = (
+            a["binary_mesh_volume_mm3"].as_f64().unwrap(),
+            a["volume_change_percent"].as_f64().unwrap(),
+        );
+        assert!((100.0 * (m / b - 1.0) - change).abs() < 1e-9, "{l}");
+        assert!(change.abs() < 10.0, "{l}");
+        let (cb, c) = (
+            a["binary_curvature_deg"].as_f64().unwrap(),
+            a["curvature_deg"].as_f64().unwrap(),
+        );
+        assert!(c < 0.6 * cb, "{l}");
     }
     for bad in [
         vec!["--surface", "constrained", "--sigma-mm", "0"],
@@ -831,7 +850,10 @@ surface = "binary"
         (&e["noise"], &e["thin"]),
         (&"smooth".into(), &"protect".into())
     );
-    assert!((e["sigma_mm"].as_f64().unwrap() - 0.9).abs() < 1e-6, "{e}");
+    assert!(
+        (e["sigma_mm"].as_f64().unwrap() - 0.675).abs() < 1e-6,
+        "{e}"
+    );
     assert!(e["noise_voxels"].as_u64().unwrap() > 0, "{e}");
     // No mesh smoother: the change is the extraction's, from the binary surface.
     assert!(tumor["method"].is_null(), "{}", tumor["method"]);
@@ -856,7 +878,7 @@ surface = "binary"
     assert!(third["sigma_mm"].is_null(), "{third}");
     let md = std::fs::read_to_string(tmp.path().join("out/neck/report.md")).unwrap();
     assert!(
-        md.contains("`tumor`: surface constrained (sigma 0.900 mm"),
+        md.contains("`tumor`: surface constrained (sigma 0.675 mm"),
         "{md}"
     );
     assert!(md.contains("`label_3`: surface binary"), "{md}");

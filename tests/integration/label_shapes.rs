@@ -119,12 +119,13 @@ fn every_object_is_one_closed_surface_around_its_voxels() {
     assert!(n == 0, "{n} failures:\n{}", failures.join("\n"));
 }
 
-/// Issue 62, item 2, as far as it holds today (measured 2026-12-07, figures in CHANGELOG): the
-/// constrained surface keeps what the binary one keeps. Single voxels and two-voxel labels
-/// exactly; tubes of radius 1 mm and more, in every orientation, at least 0.83 of the binary
-/// volume (measured 0.84-1.00; the plain Gaussian kept 0.18 of it for in-slice tubes); labels
-/// of 1000+ voxels whose binary surface holds their voxel volume within 1 % stay within 3 % of
-/// it (sphere 1.8 %); one-voxel sheets and the septum 0.5-1.3 of their voxel volume.
+/// Issue 62, item 2, as far as it holds today (figures in CHANGELOG): the constrained surface
+/// keeps what the binary one keeps. Single voxels and two-voxel labels exactly; tubes of
+/// radius 1 mm and more at least 0.93 of the binary volume across the slices and 0.87 in the
+/// slice plane (measured 0.945-1.00 and 0.878-0.99; the plain Gaussian kept 0.18 of it for
+/// in-slice tubes); labels of 1000+ voxels whose binary surface holds their voxel volume within
+/// 1 % stay within 3 % of it (sphere 1.5 %); one-voxel sheets and the septum 0.5-1.3 of their
+/// voxel volume.
 #[test]
 fn constrained_surfaces_keep_the_size_the_binary_surface_keeps() {
     use destair::mesh::geometry::signed_volume;
@@ -171,7 +172,9 @@ fn constrained_surfaces_keep_the_size_the_binary_surface_keeps() {
                 expect(0, c >= 0.99 * b);
             }
             if shape == "tube" && want["radius_mm"].as_f64().unwrap() >= 1.0 {
-                expect(1, c >= 0.83 * b);
+                // Tubes lying in the slices are one or two slices thick, nearly all corners.
+                let in_slice = name.starts_with("tubes-along-x") || name.starts_with("tubes-xy");
+                expect(1, c >= if in_slice { 0.87 } else { 0.93 } * b);
             }
             if l.n_voxels >= 1000 && (b / voxels - 1.0).abs() <= 0.01 {
                 expect(2, (c / voxels - 1.0).abs() <= 0.03);
@@ -187,4 +190,40 @@ fn constrained_surfaces_keep_the_size_the_binary_surface_keeps() {
         "{checked:?}"
     );
     assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// Issue 62, item 4: within the range `check_sigma` accepts, a larger `sigma_mm` is smoother
+/// (mean normal curvature) on the 12 mm sphere at 0.8 x 0.8 x 2.5 mm, and keeps its volume
+/// within 3 % (measured 2026-12-08: 21.1, 10.2, 7.3, 6.3 degrees at 0.4, 0.8, 1.2, 1.6 mm).
+#[test]
+fn a_larger_sigma_is_smoother_within_the_accepted_range() {
+    use destair::extract::constrained::check_sigma;
+    use destair::mesh::geometry::signed_volume;
+    use destair::mesh::Topology;
+    use destair::metrics::normal_curvature::average_normal_curvature;
+    let map = read_label_map(&data().join("sphere.nii.gz"), Space::Lps).unwrap();
+    let volume = &map.layers[0];
+    let voxels = volume.labels[0].n_voxels as f64 * volume.grid.voxel_volume();
+    let mut curvatures = Vec::new();
+    for sigma in [0.4, 0.8, 1.2, 1.6] {
+        check_sigma(sigma, volume).unwrap();
+        let smoothing = vec![
+            LabelSmoothing {
+                sigma_mm: Some(sigma),
+                ..LabelSmoothing::default()
+            };
+            volume.labels.len() + 1
+        ];
+        let mut all = interfaces(volume, &[]);
+        place_on_weights(volume, &mut all, &smoothing);
+        let mesh = label_surfaces(volume, &all).remove(0).mesh;
+        let curvature = average_normal_curvature(&mesh, &Topology::build(&mesh));
+        let kept = signed_volume(&mesh) / voxels;
+        eprintln!("sigma {sigma} mm: {curvature:.2} degrees, volume {kept:.4} of the voxels");
+        assert!((kept - 1.0).abs() < 0.03, "sigma {sigma}: volume {kept}");
+        curvatures.push(curvature);
+    }
+    assert!(curvatures.windows(2).all(|w| w[1] < w[0]), "{curvatures:?}");
+    // The next step up is refused with the range.
+    assert!(check_sigma(2.0, volume).is_err());
 }
