@@ -438,6 +438,9 @@ fn bump_or_pit(volume: &LabelVolume, label: u16, v: [i64; 3]) -> bool {
 struct Sample {
     weights: [f32; 4],
     narrowing: Option<[f64; 3]>,
+    /// Whether `weights` are already the narrowed kernels' (where no noise can be pinned, the
+    /// full kernels' would serve nothing).
+    narrowed: bool,
 }
 
 /// The cell edge an edge vertex lies on: its axis and lower voxel (the position is a whole
@@ -517,6 +520,21 @@ pub fn place_on_weights(
 
     // Pass 1: the smoothed weights at both ends of every edge between two smoothed labels, as
     // [a at lo, b at lo, a at hi, b at hi], and how far the Gaussian narrows there.
+    // The weights with each label's Gaussian narrowed by `f` per axis.
+    let narrowed_weights = |f: [f64; 3], [a, b]: [u16; 2], lo: [i64; 3], axis: usize| {
+        let k = |l: u16| {
+            Kernel::new(std::array::from_fn(|ax| {
+                sigmas[l as usize] * f[ax] / spacing[ax]
+            }))
+        };
+        edge_weights(volume, [&k(a), &k(b)], [a, b], lo, axis)
+    };
+    // Whether noise may be pinned at an edge: both labels relax it and the part is not thin.
+    let pins_noise = |a: u16, b: u16, narrowing: Option<[f64; 3]>| {
+        relaxes(a)
+            && relaxes(b)
+            && !narrowing.is_some_and(|f| f.iter().any(|&x| x <= NOISE_THICKNESS))
+    };
     let kinds = &all.kinds;
     let samples: Vec<Option<Sample>> = all
         .positions
@@ -525,10 +543,21 @@ pub fn place_on_weights(
         .map(|(p, &kind)| {
             let e = (kind == VERTEX_EDGE).then(|| edge(p)).flatten()?;
             let (axis, lo, _, a, b) = e;
-            let g = [&kernels[a as usize], &kernels[b as usize]];
-            Some(Sample {
-                weights: edge_weights(volume, g, [a, b], lo, axis),
-                narrowing: scale(e),
+            let narrowing = scale(e);
+            Some(match narrowing {
+                Some(f) if !pins_noise(a, b, narrowing) => Sample {
+                    weights: narrowed_weights(f, [a, b], lo, axis),
+                    narrowing,
+                    narrowed: true,
+                },
+                _ => {
+                    let g = [&kernels[a as usize], &kernels[b as usize]];
+                    Sample {
+                        weights: edge_weights(volume, g, [a, b], lo, axis),
+                        narrowing,
+                        narrowed: false,
+                    }
+                }
             })
         })
         .collect();
@@ -545,10 +574,7 @@ pub fn place_on_weights(
             let Some((sample, (_, lo, hi, a, b))) = w.as_ref().zip(edge(p)) else {
                 return pins;
             };
-            let thin = sample
-                .narrowing
-                .is_some_and(|f| f.iter().any(|&x| x <= NOISE_THICKNESS));
-            if !(relaxes(a) && relaxes(b)) || thin {
+            if !pins_noise(a, b, sample.narrowing) {
                 return pins;
             }
             // lo holds a and hi holds b: a's weight must win at lo, b's at hi.
@@ -594,9 +620,8 @@ pub fn place_on_weights(
                     // Offsets live inside the volume only.
                     for (v, i) in [(lo, 0), (hi, 2)] {
                         if let Some(v) = linear(v) {
-                            let row = (v / nx) as usize;
-                            d[i] = relaxation.delta(v, row, a);
-                            d[i + 1] = relaxation.delta(v, row, b);
+                            d[i] = relaxation.delta(v, a);
+                            d[i + 1] = relaxation.delta(v, b);
                         }
                     }
                     d
@@ -612,16 +637,13 @@ pub fn place_on_weights(
                     .iter()
                     .any(|&(v, l)| linear(v).is_some_and(|v| relaxation.is_relaxed(v, l)));
             let factor = if near_noise { None } else { sample.narrowing };
-            let base = if let Some(f) = factor {
-                let k = |l: u16| {
-                    Kernel::new(std::array::from_fn(|ax| {
-                        sigmas[l as usize] * f[ax] / spacing[ax]
-                    }))
-                };
-                let (ka, kb) = (k(a), k(b));
-                edge_weights(volume, [&ka, &kb], [a, b], lo, axis)
-            } else {
-                sample.weights
+            let base = match (factor, sample.narrowed) {
+                (Some(f), false) => narrowed_weights(f, [a, b], lo, axis),
+                (None, true) => {
+                    let g = [&kernels[a as usize], &kernels[b as usize]];
+                    edge_weights(volume, g, [a, b], lo, axis)
+                }
+                _ => sample.weights,
             };
             let w = if let Some(d) = offsets {
                 std::array::from_fn(|i| base[i] + d[i])

@@ -45,8 +45,9 @@ pub struct Relaxation {
     kernels: Vec<Spread>,
     /// (label, voxel, offset) of every relaxed voxel, sorted.
     offsets: Vec<(u16, u64, f64)>,
-    /// Rows (y + ny * z) within reach of any offset: a quick no for the rest.
-    rows: Vec<bool>,
+    /// Bricks of [`BRICK`]³ voxels within reach of any offset, sorted: a quick no for the
+    /// voxels in the others.
+    bricks: Vec<u64>,
     /// Rows that hold an offset: the only ones a sum visits.
     occupied: Vec<bool>,
     /// Noise voxels relaxed, per dense label.
@@ -63,11 +64,14 @@ impl Relaxation {
 
     /// Weight to add to `label`'s smoothed weight at `voxel` (in row `row`): the kernel's
     /// share of every offset of `label` within reach, summed in a fixed order.
-    pub fn delta(&self, voxel: u64, row: usize, label: u16) -> f32 {
-        if !self.rows.get(row).copied().unwrap_or(false) {
+    pub fn delta(&self, voxel: u64, label: u16) -> f32 {
+        if self.offsets.is_empty() {
             return 0.0;
         }
         let c = coords(self.dims, voxel);
+        if self.bricks.binary_search(&brick_of(self.dims, c)).is_err() {
+            return 0.0;
+        }
         let [nx, ny, nz] = self.dims.map(|d| d as i64);
         // The label's offsets; in them, those of each occupied row within reach.
         let start = self.offsets.partition_point(|e| e.0 < label);
@@ -95,12 +99,27 @@ impl Relaxation {
         sum as f32
     }
 
+    /// (label, voxel, offset) of every relaxed voxel, sorted by label and voxel.
+    pub fn offsets(&self) -> &[(u16, u64, f64)] {
+        &self.offsets
+    }
+
     /// Whether `voxel` was relaxed as noise for `label`.
     pub fn is_relaxed(&self, voxel: u64, label: u16) -> bool {
         self.offsets
             .binary_search_by(|e| (e.0, e.1).cmp(&(label, voxel)))
             .is_ok()
     }
+}
+
+/// Edge of the bricks that say where offsets reach (voxels).
+const BRICK: i64 = 4;
+
+/// The brick holding voxel `c` of a volume of `dims` voxels.
+fn brick_of(dims: [usize; 3], c: [i64; 3]) -> u64 {
+    let [bx, by, _] = dims.map(|d| (d as i64 + BRICK - 1) / BRICK);
+    let b = c.map(|x| x / BRICK);
+    (b[0] + bx * (b[1] + by * b[2])) as u64
 }
 
 /// Voxel coordinates of linear index `v` in a volume of `dims` voxels.
@@ -242,11 +261,10 @@ pub fn relax(
         groups.entry(r).or_default().push(i);
     }
     let tap = |label: u16, d: [i64; 3]| tap(&kernels[label as usize], d);
-    out.rows = vec![false; dims[1] * dims[2]];
     out.occupied = vec![false; dims[1] * dims[2]];
     out.dims = dims;
     out.kernels = kernels.to_vec();
-    let [_, ny, nz] = dims.map(|d| d as i64);
+    let [nx, ny, nz] = dims.map(|d| d as i64);
     for members in groups.values() {
         let label = noise[members[0]].label;
         let k = members.len();
@@ -275,16 +293,21 @@ pub fn relax(
         for (m, (c, o)) in members.iter().zip(at.iter().zip(offsets)) {
             out.offsets.push((label, noise[*m].voxel, o));
             out.occupied[(c[1] + ny * c[2]) as usize] = true;
-            for dz in -SPREAD..=SPREAD {
-                for dy in -SPREAD..=SPREAD {
-                    let (y, z) = (c[1] + dy, c[2] + dz);
-                    if y >= 0 && z >= 0 && y < ny && z < nz {
-                        out.rows[(y + ny * z) as usize] = true;
+            // The bricks the offset's reach overlaps.
+            let lo = [0, 1, 2].map(|a| (c[a] - SPREAD).max(0) / BRICK);
+            let hi = [0, 1, 2].map(|a| (c[a] + SPREAD).min([nx, ny, nz][a] - 1) / BRICK);
+            for bz in lo[2]..=hi[2] {
+                for by in lo[1]..=hi[1] {
+                    for bx in lo[0]..=hi[0] {
+                        out.bricks
+                            .push(brick_of(dims, [bx * BRICK, by * BRICK, bz * BRICK]));
                     }
                 }
             }
         }
     }
+    out.bricks.sort_unstable();
+    out.bricks.dedup();
     out.offsets.sort_unstable_by_key(|e| (e.0, e.1));
     out
 }
