@@ -216,17 +216,39 @@ pub struct LabelCounts {
 /// that a convex part loses no volume to the smoothing to second order (a plain Gaussian moves
 /// a surface of mean curvature `H` inwards by about `sigma² H`), while staircases, which are
 /// much finer than the Gaussian, are still smoothed away. Separable parts per axis.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Kernel {
     /// The Gaussian's 5 taps per axis, normalised.
     pub g: [[f32; 5]; 3],
     /// `g * g` per axis: 9 taps.
     pub h: [[f32; 9]; 3],
+    /// For kernels used at many edges (a label's): the row sums along x by mask.
+    row_sums: Option<Box<RowSums>>,
+}
+
+/// A kernel's sums along x over every subset of its taps (bit k of the index: tap k), added
+/// in increasing tap order from 0: a row's sum is one lookup by the mask of the label's
+/// voxels in it, the same number as adding its taps one by one.
+#[derive(Debug, Clone, PartialEq)]
+struct RowSums {
+    h: [f32; 512],
+    g: [f32; 32],
+}
+
+/// The sum of `taps` chosen by the bits of `mask` (bit k: tap k), in increasing tap order
+/// from 0.
+fn masked_sum(taps: &[f32], mut mask: usize) -> f32 {
+    let mut sum = 0f32;
+    while mask != 0 {
+        sum += taps[mask.trailing_zeros() as usize];
+        mask &= mask - 1;
+    }
+    sum
 }
 
 impl Kernel {
-    /// The kernel for a per-axis sigma in voxels.
-    fn new(sigma_voxels: [f64; 3]) -> Kernel {
+    /// The kernel for a per-axis sigma in voxels, without row sums (for use at one edge).
+    pub fn new(sigma_voxels: [f64; 3]) -> Kernel {
         let g: [[f64; 5]; 3] = std::array::from_fn(|axis| {
             let sigma = sigma_voxels[axis].max(1e-6);
             let mut taps: [f64; 5] =
@@ -255,13 +277,50 @@ impl Kernel {
                     .sum::<f64>() as f32
             })
         });
-        Kernel { g, h }
+        Kernel {
+            g,
+            h,
+            row_sums: None,
+        }
+    }
+
+    /// The same kernel with its row sums by mask, for use at many edges.
+    pub fn with_row_sums(mut self) -> Kernel {
+        let (h, g) = (self.h[0], self.g[0]);
+        self.row_sums = Some(Box::new(RowSums {
+            h: std::array::from_fn(|m| masked_sum(&h, m)),
+            g: std::array::from_fn(|m| masked_sum(&g, m)),
+        }));
+        self
+    }
+
+    /// The same kernel without row sums (its row sums are then added tap by tap: the same
+    /// numbers).
+    pub fn without_row_sums(mut self) -> Kernel {
+        self.row_sums = None;
+        self
+    }
+
+    /// The sum along x of `g * g` over the taps in `mask` (9 bits).
+    fn h_sum(&self, mask: usize) -> f32 {
+        match &self.row_sums {
+            Some(t) => t.h[mask & 511],
+            None => masked_sum(&self.h[0], mask & 511),
+        }
+    }
+
+    /// The sum along x of `g` over the taps in `mask` (5 bits).
+    fn g_sum(&self, mask: usize) -> f32 {
+        match &self.row_sums {
+            Some(t) => t.g[mask & 31],
+            None => masked_sum(&self.g[0], mask & 31),
+        }
     }
 
     /// The kernel of a label with `sigma_mm` on `volume`'s grid.
     fn on(volume: &LabelVolume, sigma_mm: f64) -> Kernel {
         let s = volume.grid.spacing();
-        Kernel::new(std::array::from_fn(|a| sigma_mm / s[a]))
+        Kernel::new(std::array::from_fn(|a| sigma_mm / s[a])).with_row_sums()
     }
 
     /// The kernel's weight at offset `d` (voxels); 0 beyond its reach.
@@ -314,19 +373,19 @@ pub fn edge_weights(
     let mut w = [[0f32; 2]; 2];
     let mut plain = [[0f32; 2]; 2];
     let mut row = [0u16; 10];
-    // The sums of a row's 9 voxels from `shift`: g*g for a and b, then g for a and b.
+    // The sums of a row's 9 voxels from `shift`: g*g for a and b, then g for a and b (one
+    // lookup each by the mask of the label's voxels; the same sums as tap by tap).
     let sums = |row: &[u16; 10], shift: usize, middle: bool| {
-        let mut s = [0f32; 4];
-        for (k, &l) in row[shift..shift + 9].iter().enumerate() {
-            let (is_a, is_b) = (f32::from(l == a), f32::from(l == b));
-            s[0] += is_a * ka.h[0][k];
-            s[1] += is_b * kb.h[0][k];
+        let (mut mask_a, mut mask_b) = (0usize, 0usize);
+        for (k, &l) in row.iter().enumerate() {
+            mask_a |= usize::from(l == a) << k;
+            mask_b |= usize::from(l == b) << k;
         }
+        let (mask_a, mask_b) = (mask_a >> shift, mask_b >> shift);
+        let mut s = [ka.h_sum(mask_a), kb.h_sum(mask_b), 0.0, 0.0];
         if middle {
-            for (k, &l) in row[shift + 2..shift + 7].iter().enumerate() {
-                s[2] += f32::from(l == a) * ka.g[0][k];
-                s[3] += f32::from(l == b) * kb.g[0][k];
-            }
+            s[2] = ka.g_sum(mask_a >> 2);
+            s[3] = kb.g_sum(mask_b >> 2);
         }
         s
     };

@@ -29,8 +29,8 @@ fn the_shrink_free_kernel_is_twice_the_gaussian_minus_its_square() {
     assert!((sum - 1.0).abs() < 1e-6, "{sum}");
 }
 
-/// The row-shared evaluation of both ends of an edge against the kernel summed tap by tap, on
-/// random label volumes, at edges along every axis, inside and at the volume's faces (outside
+/// The row-shared evaluation of both ends of an edge (row sums looked up by mask, or added
+/// tap by tap) against the kernel summed tap by tap, on random label volumes, at edges along every axis, inside and at the volume's faces (outside
 /// is background).
 #[test]
 fn edge_weights_match_the_kernel_summed_tap_by_tap() {
@@ -49,8 +49,9 @@ fn edge_weights_match_the_kernel_summed_tap_by_tap() {
             let sum: f32 = t.iter().sum();
             t.map(|x| x / sum)
         };
+        // One kernel looks its row sums up by mask, the other adds them tap by tap.
         let kernels = [
-            Kernel::from_taps([taps(), taps(), taps()]),
+            Kernel::from_taps([taps(), taps(), taps()]).with_row_sums(),
             Kernel::from_taps([taps(), taps(), taps()]),
         ];
         let label_at = |p: [i64; 3]| {
@@ -66,6 +67,12 @@ fn edge_weights_match_the_kernel_summed_tap_by_tap() {
                 std::array::from_fn(|k| rng.i64(-1..dims[k] as i64 - i64::from(k == axis) + 1));
             let (a, b) = (rng.u16(0..3), rng.u16(0..3));
             let fast = edge_weights(&volume, [&kernels[0], &kernels[1]], [a, b], lo, axis);
+            // Row sums by mask are the same numbers as tap by tap.
+            let plain = kernels[0].clone().without_row_sums();
+            assert_eq!(
+                fast,
+                edge_weights(&volume, [&plain, &kernels[1]], [a, b], lo, axis)
+            );
             for (end, offset) in [0i64, 1].into_iter().enumerate() {
                 let v: [i64; 3] =
                     std::array::from_fn(|k| lo[k] + if k == axis { offset } else { 0 });
