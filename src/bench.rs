@@ -681,6 +681,11 @@ pub struct LabelMapBench {
     pub interfaces_s: f64,
     /// Of which: one closed surface per label from the interfaces (best time, s).
     pub assemble_s: f64,
+    /// Best time to extract every label's constrained surface with the default settings
+    /// (interfaces, smoothed weights, label surfaces; s).
+    pub constrained_s: f64,
+    /// Median of the same runs (s).
+    pub constrained_median_s: f64,
     /// Triangles of all interfaces.
     pub n_interface_triangles: usize,
     /// Counting every label surface's triangles without making them (what the memory budget
@@ -721,6 +726,8 @@ pub fn labelmap(dir: &Path, repeat: usize, keep: bool) -> std::io::Result<LabelM
         extract_median_s: 0.0,
         interfaces_s: 0.0,
         assemble_s: 0.0,
+        constrained_s: 0.0,
+        constrained_median_s: 0.0,
         n_interface_triangles: 0,
         count_s: 0.0,
         n_surface_triangles: 0,
@@ -747,6 +754,20 @@ pub fn labelmap(dir: &Path, repeat: usize, keep: bool) -> std::io::Result<LabelM
     out.extract_median_s = times[times.len() / 2];
     out.n_interface_triangles = all.triangles.len();
     drop((all, _surfaces));
+    let mut times = Vec::with_capacity(repeat.max(1));
+    let (s, _surfaces) = best_of(repeat, || {
+        let t = Instant::now();
+        let smoothing = vec![Default::default(); volume.labels.len() + 1];
+        let mut all = crate::extract::interfaces(&volume, &[]);
+        crate::extract::constrained::place_on_weights(&volume, &mut all, &smoothing);
+        let surfaces = crate::extract::label_surfaces(&volume, &all);
+        times.push(t.elapsed().as_secs_f64());
+        surfaces
+    });
+    out.constrained_s = s;
+    times.sort_by(f64::total_cmp);
+    out.constrained_median_s = times[times.len() / 2];
+    drop(_surfaces);
     for gz in [true, false] {
         let path = dir.join(if gz {
             "destair-bench.nii.gz"

@@ -217,6 +217,10 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
             println!("    interfaces           {:.4} s", r.interfaces_s);
             println!("    label surfaces       {:.4} s", r.assemble_s);
             println!(
+                "  constrained surfaces   {:.4} s  (median {:.4} s; default settings)",
+                r.constrained_s, r.constrained_median_s
+            );
+            println!(
                 "  count surfaces         {:.4} s  ({} surface triangles, for the memory budget)",
                 r.count_s, r.n_surface_triangles
             );
