@@ -250,11 +250,18 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
             layer,
             &destair::extract::constrained::connectivity_of(&per_label),
         );
-        // The binary surfaces too, to report what the smoothing changed.
+        // The binary surfaces measured too, to report what the smoothing changed (and dropped
+        // before the constrained ones are made).
         let binary = (smoothing.surface == Surface::Constrained).then(|| {
+            use rayon::prelude::*;
             destair::extract::label_surfaces(layer, &all)
-                .into_iter()
-                .map(|s| (s.label, s.mesh))
+                .into_par_iter()
+                .map(|s| {
+                    (
+                        s.label,
+                        destair::extract::report::SurfaceMeasure::of(&s.mesh),
+                    )
+                })
                 .collect::<Vec<_>>()
         });
         let counts = destair::extract::constrained::place_on_weights(layer, &mut all, &per_label);
@@ -279,7 +286,7 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
             let binary = binary
                 .as_mut()
                 .and_then(|b| b.find(|(l, _)| *l == s.label))
-                .map(|(_, mesh)| mesh);
+                .map(|(_, measure)| measure);
             let label = &layer.labels[s.label as usize - 1];
             let mut stem = destair::volume::label_file_stem(&label.name, label.value);
             if !used.insert(stem.clone()) {
@@ -320,7 +327,7 @@ pub fn exec(args: Args) -> anyhow::Result<()> {
                     &mesh,
                     &layer.grid,
                     extraction,
-                    binary.as_ref(),
+                    binary,
                 ))
             })
             .collect();

@@ -17,6 +17,7 @@
 
 mod cell;
 pub mod constrained;
+pub mod kernel;
 pub mod noise;
 pub mod report;
 

@@ -62,8 +62,8 @@ impl Relaxation {
         self.offsets.is_empty()
     }
 
-    /// Weight to add to `label`'s smoothed weight at `voxel` (in row `row`): the kernel's
-    /// share of every offset of `label` within reach, summed in a fixed order.
+    /// Weight to add to `label`'s smoothed weight at `voxel`: the kernel's share of every
+    /// offset of `label` within reach, summed in a fixed order.
     pub fn delta(&self, voxel: u64, label: u16) -> f32 {
         if self.offsets.is_empty() {
             return 0.0;

@@ -29,8 +29,27 @@ pub struct ExtractedLabel {
     pub against_binary: Option<AgainstBinary>,
 }
 
+/// What is measured of a surface to compare a constrained one with its binary twin: the
+/// volume it encloses (mm³) and its mean normal curvature (degrees, as paper 001 measures it).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SurfaceMeasure {
+    pub volume_mm3: f64,
+    pub curvature_deg: f64,
+}
+
+impl SurfaceMeasure {
+    /// Measures `mesh`.
+    pub fn of(mesh: &crate::Mesh) -> SurfaceMeasure {
+        use crate::metrics::normal_curvature::average_normal_curvature;
+        SurfaceMeasure {
+            volume_mm3: signed_volume(mesh),
+            curvature_deg: average_normal_curvature(mesh, &Topology::build(mesh)),
+        }
+    }
+}
+
 /// A constrained surface against the binary extraction of the same label: volume (mm³, and
-/// the change in %) and mean normal curvature (degrees, as paper 001 measures it).
+/// the change in %) and mean normal curvature (degrees).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct AgainstBinary {
     pub binary_mesh_volume_mm3: f64,
@@ -41,16 +60,14 @@ pub struct AgainstBinary {
 }
 
 impl AgainstBinary {
-    /// Measures `mesh` (constrained) against `binary`, the same label's binary surface.
-    pub fn measure(mesh: &crate::Mesh, binary: &crate::Mesh) -> AgainstBinary {
-        use crate::metrics::normal_curvature::average_normal_curvature;
-        let curvature = |m: &crate::Mesh| average_normal_curvature(m, &Topology::build(m));
-        let (b, c) = (signed_volume(binary), signed_volume(mesh));
+    /// The constrained surface's measures `mesh` against the binary one's.
+    pub fn new(mesh: SurfaceMeasure, binary: SurfaceMeasure) -> AgainstBinary {
+        let (b, c) = (binary.volume_mm3, mesh.volume_mm3);
         AgainstBinary {
             binary_mesh_volume_mm3: b,
             volume_change_percent: if b != 0.0 { 100.0 * (c / b - 1.0) } else { 0.0 },
-            binary_curvature_deg: curvature(binary),
-            curvature_deg: curvature(mesh),
+            binary_curvature_deg: binary.curvature_deg,
+            curvature_deg: mesh.curvature_deg,
         }
     }
 }
@@ -128,8 +145,8 @@ pub struct ExtractReport {
     pub warnings: Vec<String>,
 }
 
-/// The row of one extracted label; `binary` is the label's binary surface when `mesh` is a
-/// constrained one.
+/// The row of one extracted label; `binary` measures the label's binary surface when `mesh`
+/// is a constrained one.
 pub fn extracted_label(
     layer: usize,
     label: &Label,
@@ -137,7 +154,7 @@ pub fn extracted_label(
     mesh: &crate::Mesh,
     grid: &Grid,
     extraction: Extraction,
-    binary: Option<&crate::Mesh>,
+    binary: Option<SurfaceMeasure>,
 ) -> ExtractedLabel {
     ExtractedLabel {
         layer,
@@ -151,7 +168,7 @@ pub fn extracted_label(
         n_triangles: mesh.n_triangles(),
         closed_oriented_manifold: is_closed_oriented_manifold(mesh),
         extraction,
-        against_binary: binary.map(|b| AgainstBinary::measure(mesh, b)),
+        against_binary: binary.map(|b| AgainstBinary::new(SurfaceMeasure::of(mesh), b)),
     }
 }
 

@@ -1,7 +1,7 @@
 //! Tests of single modules through the library's public API.
 
 mod analysis_voxel_size;
-mod extract_constrained;
+mod extract_kernel;
 mod extract_noise;
 mod guard;
 mod io_atomic;

@@ -1,6 +1,6 @@
-//! Tests of `src/extract/constrained.rs`.
+//! Tests of `src/extract/kernel.rs`.
 
-use destair::extract::constrained::Kernel;
+use destair::extract::kernel::Kernel;
 
 fn flat_kernel() -> Kernel {
     let t = [0.1f32, 0.2, 0.4, 0.2, 0.1];
@@ -34,7 +34,7 @@ fn the_shrink_free_kernel_is_twice_the_gaussian_minus_its_square() {
 /// is background).
 #[test]
 fn edge_weights_match_the_kernel_summed_tap_by_tap() {
-    use destair::extract::constrained::edge_weights;
+    use destair::extract::kernel::edge_weights;
     use destair::volume::{Grid, LabelVolume, Space};
     let mut rng = fastrand::Rng::with_seed(62);
     let dims = [13usize, 11, 10];
