@@ -396,9 +396,10 @@ pub fn place_on_weights(
         })
         .collect();
 
-    // Surface noise (§6.3.3): the voxels the clamp pins, where both labels relax noise. A
-    // pinned voxel is a bump or a pit only where its own label sits on more of itself (or is
-    // the background): a structure of one or two voxels is not noise.
+    // Surface noise (§6.3.3): the voxels the clamp pins, where both labels relax noise and the
+    // part is not thin. A pinned voxel is noise only as a one- or two-voxel bump or pit
+    // ([`bump_or_pit`]): staircase edges and box corners are shape, and a structure of one or
+    // two voxels keeps its size.
     let pinned: Vec<Pinned> = all
         .positions
         .par_iter()
@@ -434,8 +435,9 @@ pub fn place_on_weights(
             pins
         })
         .collect();
-    // Offsets spread with the Gaussian convolved with itself (a wider, gentle swelling than
-    // the shrink-free kernel would make: a pimple's steepest facet 35 degrees with it, 11 so).
+    // Offsets spread with the Gaussian convolved with itself: a wider, gentler swelling than
+    // the shrink-free kernel makes (measured 2026-12-07 under the earlier noise rule: a
+    // pimple's steepest facet 35 degrees with the shrink-free kernel, 11 so).
     let spreads: Vec<[[f32; 9]; 3]> = kernels.iter().map(|k| k.h).collect();
     let relaxation = super::noise::relax(volume.dims, &spreads, pinned, n_labels);
 
@@ -447,7 +449,7 @@ pub fn place_on_weights(
         .zip(samples.par_iter())
         .map(|(p, sample)| {
             let (sample, (axis, lo, hi, a, b)) = sample.as_ref().zip(edge(p))?;
-            // Within reach of relaxed noise: the Gaussian's weights and the offsets.
+            // The offsets of relaxed noise within reach, if any.
             let offsets = (!relaxation.is_empty())
                 .then(|| {
                     let mut d = [0f32; 4];

@@ -2,7 +2,8 @@
 //! smoothing as a "pimple", because the clamp pins its voxel right at the surface while the
 //! voxels around it hardly move. Such a voxel is one whose smoothed weight for a label landed
 //! on the wrong side of 1/2 (the clamp had to pin it) with few other pinned voxels of that
-//! label near it: at most 5 others in its 5 x 5 x 5 neighbourhood. Its weight gets an offset
+//! label near it: at most 2 others in its 5 x 5 x 5 neighbourhood (the
+//! caller passes only one- and two-voxel bumps and pits). Its weight gets an offset
 //! before smoothing, chosen so that the smoothed weight at the voxel itself is exactly 1/2;
 //! the offset spreads over its neighbours with the label's Gaussian convolved with itself (9
 //! taps per axis), so the spike becomes a wider, gentle swelling. Near
@@ -17,7 +18,8 @@ const SPREAD: i64 = 4;
 /// A spreading kernel's taps per axis.
 pub type Spread = [[f32; 9]; 3];
 /// Most other pinned voxels of the same label in a 5 x 5 x 5 neighbourhood for a voxel to be
-/// noise: the chapter's "less than 6".
+/// noise. Stricter than the chapter, which takes fewer than 6 (a value kept since these
+/// surfaces landed; not re-measured).
 const MAX_NEIGHBOURS: usize = 2;
 /// Largest group of near noise voxels solved together; larger groups stay pinned (counted as
 /// unsolved).

@@ -754,17 +754,17 @@ fn thin_structures_keep_a_real_thickness_when_protected() {
         );
         // At least half the voxel volume, or nearly what the binary extraction keeps where
         // that is less (a one-voxel rod's cross-section is a diamond of half the voxel's and
-        // its ends are pyramids: 0.467 of a 10-voxel rod; its ends round off a little more:
-        // measured 0.464 and 0.464 against 0.467 and 0.486).
+        // its ends are pyramids: 0.467 of a 10-voxel rod; measured 2026-12-08: 0.467 and
+        // 0.468).
         let binary = binary_volume(volume, *value);
         assert!(
             protected >= 0.5f64.min(0.95 * binary),
             "{name}: {protected} (binary {binary})"
         );
-        // Between two labels the shrink-free kernel alone keeps most of a septum (measured
-        // 0.485 without, 0.546 with); elsewhere thin parts collapse without narrowing.
-        let factor = if *name == "septum" { 0.95 } else { 0.75 };
-        assert!(off < factor * protected, "{name}: {off} vs {protected}");
+        // Without narrowing thin parts collapse (measured 2026-12-08: sheet 0.130 against
+        // 0.860, rods 0.004 and 0.006 against 0.467, tube wall 0.211 against 0.852; between two
+        // labels the shrink-free kernel alone keeps more of the septum, 0.591 against 0.909).
+        assert!(off < 0.75 * protected, "{name}: {off} vs {protected}");
     }
 }
 
